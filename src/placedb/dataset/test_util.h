@@ -1,0 +1,71 @@
+// Helpers for this module's tests only: a scratch directory and a check that a
+// call throws a given exception type whose message contains given parts.
+#pragma once
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <initializer_list>
+#include <string>
+
+namespace placedb {
+namespace testing_util {
+
+// A fresh directory under the system temp dir, removed with its contents.
+class TempDir {
+ public:
+  TempDir() {
+    const ::testing::TestInfo* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    path_ = std::filesystem::temp_directory_path() /
+            ("placedb_dataset_" + std::to_string(getpid()) + "_" + info->test_suite_name() + "_" +
+             info->name());
+    std::filesystem::remove_all(path_);
+    std::filesystem::create_directories(path_);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path_, ec);
+  }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+
+  // Absolute path of `relative` inside the directory.
+  std::string Path(const std::string& relative = "") const { return (path_ / relative).string(); }
+
+  // Writes `content` to `relative` (parent folders created) and returns its path.
+  std::string Write(const std::string& relative, const std::string& content) const {
+    const std::filesystem::path file = path_ / relative;
+    std::filesystem::create_directories(file.parent_path());
+    std::ofstream(file, std::ios::binary) << content;
+    return file.string();
+  }
+
+ private:
+  std::filesystem::path path_;
+};
+
+// Runs `fn`; succeeds when it throws `Exception` whose what() contains every
+// one of `parts`.
+template <typename Exception, typename Fn>
+::testing::AssertionResult ThrowsWith(Fn&& fn, std::initializer_list<std::string> parts) {
+  try {
+    fn();
+  } catch (const Exception& e) {
+    const std::string message = e.what();
+    for (const std::string& part : parts) {
+      if (message.find(part) == std::string::npos) {
+        return ::testing::AssertionFailure()
+               << "message '" << message << "' lacks '" << part << "'";
+      }
+    }
+    return ::testing::AssertionSuccess() << message;
+  } catch (const std::exception& e) {
+    return ::testing::AssertionFailure() << "wrong exception type: " << e.what();
+  }
+  return ::testing::AssertionFailure() << "nothing thrown";
+}
+
+}  // namespace testing_util
+}  // namespace placedb

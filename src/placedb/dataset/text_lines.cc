@@ -1,0 +1,102 @@
+#include "placedb/dataset/text_lines.h"
+
+#include <charconv>
+#include <cmath>
+#include <filesystem>
+#include <stdexcept>
+#include <system_error>
+
+#include "placedb/util/check.h"
+#include "placedb/util/file_io.h"
+
+namespace placedb {
+namespace internal {
+namespace {
+
+constexpr const char* kBlanks = " \t\r\n\f\v";
+
+std::string Trim(const std::string& s) {
+  const size_t begin = s.find_first_not_of(kBlanks);
+  if (begin == std::string::npos) return "";
+  const size_t end = s.find_last_not_of(kBlanks);
+  return s.substr(begin, end - begin + 1);
+}
+
+// from_chars does not take a leading '+'; accept it like strtod does.
+const char* SkipPlus(const std::string& token) {
+  const char* p = token.data();
+  if (token.size() > 1 && p[0] == '+' && p[1] != '-' && p[1] != '+') ++p;
+  return p;
+}
+
+}  // namespace
+
+bool IsRegularFile(const std::string& path) {
+  std::error_code ec;
+  return std::filesystem::is_regular_file(path, ec);
+}
+
+std::vector<TextLine> ReadDataLines(const std::string& path, const std::string& what) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) PLACEDB_THROW_INVALID(what, " not found: ", path);
+  if (std::filesystem::is_directory(path, ec)) {
+    PLACEDB_THROW_INVALID(what, " is a directory, expected a text file: ", path);
+  }
+  std::string content = ReadFileToString(path);  // std::runtime_error when unreadable
+  if (content.compare(0, 3, "\xEF\xBB\xBF") == 0) content.erase(0, 3);
+
+  std::vector<TextLine> lines;
+  int number = 0;
+  size_t pos = 0;
+  while (pos < content.size()) {
+    size_t end = content.find('\n', pos);
+    if (end == std::string::npos) end = content.size();
+    ++number;
+    std::string text = Trim(content.substr(pos, end - pos));
+    if (!text.empty() && text[0] != '#') lines.push_back({number, std::move(text)});
+    pos = end + 1;
+  }
+  return lines;
+}
+
+std::vector<std::string> SplitFields(const std::string& text, const std::string& separators) {
+  std::vector<std::string> fields;
+  size_t pos = text.find_first_not_of(separators);
+  while (pos != std::string::npos) {
+    const size_t end = text.find_first_of(separators, pos);
+    fields.push_back(text.substr(pos, end == std::string::npos ? std::string::npos : end - pos));
+    pos = text.find_first_not_of(separators, end);
+  }
+  return fields;
+}
+
+void ThrowLineError(const std::string& path, int line, const std::string& message) {
+  // The data file's location is the useful one here, not this helper's.
+  throw std::invalid_argument(path + ":" + std::to_string(line) + ": " + message);
+}
+
+double ParseDouble(const std::string& token, const std::string& path, int line,
+                   const std::string& what) {
+  const char* begin = SkipPlus(token);
+  const char* end = token.data() + token.size();
+  double value = 0.0;
+  const auto [ptr, ec] = std::from_chars(begin, end, value, std::chars_format::general);
+  if (ec != std::errc() || ptr != end || !std::isfinite(value)) {
+    ThrowLineError(path, line, "expected a number for " + what + ", got '" + token + "'");
+  }
+  return value;
+}
+
+int ParseInt(const std::string& token, const std::string& path, int line, const std::string& what) {
+  const char* begin = SkipPlus(token);
+  const char* end = token.data() + token.size();
+  int value = 0;
+  const auto [ptr, ec] = std::from_chars(begin, end, value);
+  if (ec != std::errc() || ptr != end) {
+    ThrowLineError(path, line, "expected an integer for " + what + ", got '" + token + "'");
+  }
+  return value;
+}
+
+}  // namespace internal
+}  // namespace placedb

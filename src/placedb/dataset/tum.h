@@ -1,0 +1,50 @@
+// Readers for TUM RGB-D benchmark folders
+// (https://cvg.cit.tum.de/data/datasets/rgbd-dataset/file_formats): rgb.txt lists the colour
+// images, groundtruth.txt the camera poses; frames get the ground-truth pose nearest in time, as
+// TUM's associate.py does.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "placedb/dataset/frame.h"
+#include "placedb/util/pose.h"
+
+namespace placedb {
+
+struct TumOptions {
+  // Largest |t_image - t_pose| for a frame to get a pose, seconds; default 0.02
+  // like associate.py. Frames with no pose that close are kept, pose-less.
+  double max_time_difference = 0.02;
+  // Image list inside the folder, default "rgb.txt": "timestamp relative/path.png" lines.
+  std::string rgb_list = "rgb.txt";
+  // Ground-truth file inside the folder, default "groundtruth.txt"; may be absent.
+  std::string groundtruth = "groundtruth.txt";
+
+  // Empty when valid, else the reason.
+  std::string Check() const;
+};
+
+struct TumPoseStamped {
+  double timestamp = 0.0;  // seconds
+  Pose pose;               // camera-to-world; quaternion normalised
+};
+
+// Reads a TUM trajectory ("timestamp tx ty tz qx qy qz qw" lines, '#'
+// comments), in file order. Malformed lines (field count, non-numeric token,
+// quaternion norm off 1 by more than 1e-2) → std::invalid_argument naming the
+// file and line; quaternions within tolerance are normalised. Missing file →
+// std::invalid_argument; unreadable → std::runtime_error.
+std::vector<TumPoseStamped> ReadTumTrajectory(const std::string& path);
+
+// Frames of a TUM RGB-D folder: id = 1-based position among the frames listed
+// in rgb.txt (file order), timestamp from rgb.txt, image_path = dir/relative
+// path. Each frame gets the ground-truth pose nearest in time (ties: the
+// earlier pose) if |dt| <= max_time_difference, else no pose (kept; one
+// summary warning). groundtruth.txt missing → every frame pose-less, with one
+// warning. Errors (std::invalid_argument): missing dir or rgb.txt, malformed
+// lines (file:line), a listed image that does not exist (file:line), no frames.
+std::vector<Frame> ReadTumSequence(const std::string& dir,
+                                   const TumOptions& options = TumOptions());
+
+}  // namespace placedb

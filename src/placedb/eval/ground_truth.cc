@@ -1,0 +1,59 @@
+#include "placedb/eval/ground_truth.h"
+
+#include <algorithm>
+
+#include <fmt/format.h>
+
+#include "placedb/util/check.h"
+
+namespace placedb {
+
+std::string PoseThresholds::Check() const {
+  if (!(max_distance_m > 0)) return "max_distance_m must be > 0";
+  if (!(max_angle_deg > 0 && max_angle_deg <= 180)) return "max_angle_deg must be in (0, 180]";
+  return "";
+}
+
+GroundTruth GroundTruth::FromMatchList(MatchTruth truth) {
+  GroundTruth g;
+  for (auto& [query, ids] : truth) std::sort(ids.begin(), ids.end());
+  g.list_ = std::move(truth);
+  return g;
+}
+
+GroundTruth GroundTruth::FromPoses(const PoseThresholds& thresholds) {
+  PLACEDB_CHECK_OPTIONS(thresholds);
+  GroundTruth g;
+  g.thresholds_ = thresholds;
+  return g;
+}
+
+bool GroundTruth::HasTruth(const Frame& query) const {
+  if (list_) return list_->count(query.id) > 0;
+  return query.pose.has_value();
+}
+
+bool GroundTruth::IsCorrect(const Frame& query, const Keyframe& keyframe) const {
+  if (list_) {
+    const auto it = list_->find(query.id);
+    return it != list_->end() &&
+           std::binary_search(it->second.begin(), it->second.end(), keyframe.id);
+  }
+  if (!query.pose || !keyframe.pose) return false;
+  return TranslationDistance(*query.pose, *keyframe.pose) <= thresholds_.max_distance_m &&
+         RotationAngleDeg(*query.pose, *keyframe.pose) <= thresholds_.max_angle_deg;
+}
+
+bool GroundTruth::AnyCorrectIn(const Frame& query, const Database& db) const {
+  for (const Keyframe& k : db.keyframes()) {
+    if (IsCorrect(query, k)) return true;
+  }
+  return false;
+}
+
+std::string GroundTruth::Describe() const {
+  if (list_) return "match list";
+  return fmt::format("poses ({} m, {} deg)", thresholds_.max_distance_m, thresholds_.max_angle_deg);
+}
+
+}  // namespace placedb

@@ -1,0 +1,48 @@
+// Deciding, without looking, whether a retrieved keyframe is a correct match
+// for a query: from a list of true matches (CSV) or from poses.
+#pragma once
+
+#include <optional>
+#include <string>
+
+#include "placedb/dataset/frame.h"
+#include "placedb/dataset/match_truth.h"
+#include "placedb/index/database.h"
+
+namespace placedb {
+
+struct PoseThresholds {
+  // A keyframe is a correct match when its camera centre is within this
+  // distance of the query's, metres. Default 0.5 (TUM scenes: a place is a
+  // step or two).
+  double max_distance_m = 0.5;
+  // ... and its viewing direction within this angle of the query's, degrees.
+  // Default 30 (views that share most of their content at room scale).
+  double max_angle_deg = 30.0;
+
+  std::string Check() const;
+};
+
+class GroundTruth {
+ public:
+  // Truth from a match list: query id -> ids of the true keyframes.
+  static GroundTruth FromMatchList(MatchTruth truth);
+  // Truth from poses: both the query and the keyframe must have a pose.
+  static GroundTruth FromPoses(const PoseThresholds& thresholds);
+
+  // Whether the query can be judged at all (listed / has a pose).
+  bool HasTruth(const Frame& query) const;
+  // Whether `keyframe` is a correct answer for `query`.
+  bool IsCorrect(const Frame& query, const Keyframe& keyframe) const;
+  // Whether the database holds at least one correct answer for `query`.
+  bool AnyCorrectIn(const Frame& query, const Database& db) const;
+
+  // "match list" or "poses (0.5 m, 30 deg)".
+  std::string Describe() const;
+
+ private:
+  std::optional<MatchTruth> list_;
+  PoseThresholds thresholds_;
+};
+
+}  // namespace placedb

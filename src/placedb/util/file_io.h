@@ -1,0 +1,117 @@
+// File helpers: whole-file reads, crash-safe writes (temporary file, fsync,
+// rename), checksums, and little-endian binary encoding of flat arrays.
+#pragma once
+
+#include <cstdint>
+#include <cstring>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+#include "placedb/util/check.h"
+
+namespace placedb {
+
+// Reads a whole file; throws std::runtime_error naming the path on failure.
+std::string ReadFileToString(const std::string& path);
+
+// Writes `data` to `path` so that a crash leaves either the old file or the new
+// one, never a torn file: write to "<path>.tmp.<pid>", fsync, rename, fsync the
+// directory.
+void WriteFileAtomic(const std::string& path, const std::string& data);
+
+// fsyncs a directory so that renames inside it are durable.
+void SyncDirectory(const std::string& dir);
+
+// CRC-32 (zlib's polynomial) of a byte range.
+uint32_t Crc32(const void* data, size_t size, uint32_t crc = 0);
+
+// Size of a file in bytes, 0 if it does not exist.
+uint64_t FileSize(const std::string& path);
+// Sum of the sizes of the regular files directly inside `dir` (0 if missing).
+uint64_t DirectorySize(const std::string& dir);
+
+static_assert(sizeof(float) == 4 && sizeof(double) == 8, "IEEE-754 floats expected");
+
+// Appends fixed-width little-endian values and flat arrays to a byte buffer.
+// placedb targets little-endian hosts (x86-64, ARM64); the format is defined
+// as little-endian and the reader rejects a big-endian host at run time.
+class BinaryWriter {
+ public:
+  template <typename T>
+  void Put(const T& value) {
+    static_assert(std::is_trivially_copyable<T>::value, "flat values only");
+    const char* bytes = reinterpret_cast<const char*>(&value);
+    buffer_.append(bytes, sizeof(T));
+  }
+  template <typename T>
+  void PutArray(const T* values, size_t count) {
+    static_assert(std::is_trivially_copyable<T>::value, "flat values only");
+    buffer_.append(reinterpret_cast<const char*>(values), sizeof(T) * count);
+  }
+  void PutBytes(const void* data, size_t size) {
+    buffer_.append(reinterpret_cast<const char*>(data), size);
+  }
+  // Pads with zeros to a multiple of `alignment` bytes (for memory mapping).
+  void Align(size_t alignment) {
+    while (buffer_.size() % alignment != 0) buffer_.push_back('\0');
+  }
+  size_t size() const { return buffer_.size(); }
+  const std::string& buffer() const { return buffer_; }
+  std::string& mutable_buffer() { return buffer_; }
+
+ private:
+  std::string buffer_;
+};
+
+// Reads what BinaryWriter wrote; every read is bounds-checked and a short
+// buffer throws std::runtime_error mentioning `what` (the file name).
+class BinaryReader {
+ public:
+  BinaryReader(const char* data, size_t size, std::string what)
+      : data_(data), size_(size), what_(std::move(what)) {}
+
+  template <typename T>
+  T Get() {
+    static_assert(std::is_trivially_copyable<T>::value, "flat values only");
+    T value;
+    Need(sizeof(T));
+    std::memcpy(&value, data_ + pos_, sizeof(T));
+    pos_ += sizeof(T);
+    return value;
+  }
+  template <typename T>
+  void GetArray(T* out, size_t count) {
+    static_assert(std::is_trivially_copyable<T>::value, "flat values only");
+    const size_t bytes = sizeof(T) * count;
+    if (count != 0 && bytes / count != sizeof(T)) PLACEDB_THROW_RUNTIME(what_, ": array too large");
+    Need(bytes);
+    if (bytes != 0) std::memcpy(out, data_ + pos_, bytes);
+    pos_ += bytes;
+  }
+  void GetBytes(void* out, size_t size) { GetArray(static_cast<char*>(out), size); }
+  void Align(size_t alignment) {
+    const size_t pad = (alignment - pos_ % alignment) % alignment;
+    Need(pad);
+    pos_ += pad;
+  }
+  size_t position() const { return pos_; }
+  size_t remaining() const { return size_ - pos_; }
+
+ private:
+  void Need(size_t bytes) const {
+    if (bytes > size_ - pos_) {
+      PLACEDB_THROW_RUNTIME(what_, ": file is truncated (needed ", bytes, " more bytes at offset ",
+                            pos_, ", file has ", size_, ")");
+    }
+  }
+  const char* data_;
+  size_t size_;
+  size_t pos_ = 0;
+  std::string what_;
+};
+
+// True on little-endian hosts (the only ones the binary formats support).
+bool HostIsLittleEndian();
+
+}  // namespace placedb
