@@ -11,6 +11,9 @@ std::vector<ScoredKeyframe> BfMatcherQuery(const Database& db, const FeatureSet&
   PLACEDB_CHECK(query.type == db.feature_type(), "query and database feature types differ");
   const bool orb = db.feature_type() == FeatureType::kOrb;
   cv::BFMatcher matcher(orb ? cv::NORM_HAMMING : cv::NORM_L2);
+  // The same distance limit as ours, so both rank the same matches.
+  const double limit = orb ? (options.match.max_hamming > 0 ? options.match.max_hamming : 1e30)
+                           : (options.match.max_l2 > 0 ? options.match.max_l2 : 1e30);
   std::vector<ScoredKeyframe> scored;
   std::vector<std::vector<cv::DMatch>> knn;
   for (size_t i = 0; i < db.size(); ++i) {
@@ -23,7 +26,8 @@ std::vector<ScoredKeyframe> BfMatcherQuery(const Database& db, const FeatureSet&
     matcher.knnMatch(query.descriptors, train, knn, 2);
     int good = 0;
     for (const auto& m : knn) {
-      if (m.size() == 1 || (m.size() == 2 && m[0].distance < options.match.ratio * m[1].distance)) {
+      if (m.empty() || m[0].distance > limit) continue;
+      if (m.size() == 1 || m[0].distance < options.match.ratio * m[1].distance) {
         ++good;
       }
     }

@@ -11,8 +11,9 @@
 
 namespace placedb {
 
-// Same ranking rules as QueryFeatures (ratio, min_matches, top_k, ties by
-// id), computed with cv::BFMatcher on the database's stored descriptors.
+// Same ranking rules as QueryFeatures (ratio, distance limit, min_matches,
+// top_k, ties by id), computed with cv::BFMatcher on the database's stored
+// descriptors. (For SURF it does not use the Laplacian sign.)
 std::vector<ScoredKeyframe> BfMatcherQuery(const Database& db, const FeatureSet& query,
                                            const QueryOptions& options);
 

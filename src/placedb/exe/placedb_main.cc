@@ -6,6 +6,7 @@
 #include <memory>
 
 #include <CLI/CLI.hpp>
+#include <opencv2/core/utils/logger.hpp>
 #include <fmt/format.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
@@ -16,6 +17,9 @@ int main(int argc, char** argv) {
   auto logger = spdlog::stderr_color_mt("placedb");
   logger->set_pattern("%^[%l]%$ %v");
   spdlog::set_default_logger(logger);
+  // placedb reports unreadable images itself, in one line; OpenCV's own
+  // warnings would only repeat them.
+  cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_ERROR);
 
   CLI::App app{"placedb: visual place recognition against a compact keyframe database"};
   app.require_subcommand(1);

@@ -1,0 +1,459 @@
+#include "placedb/index/builder.h"
+
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+#include <thread>
+
+#include <opencv2/core/utility.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "placedb/dataset/image_folder.h"
+#include "placedb/util/file_io.h"
+
+namespace placedb {
+namespace {
+namespace fs = std::filesystem;
+
+const std::string kImages = PLACEDB_DATA_DIR "/rtabmap_loop/images";
+
+// A fresh directory under the system temp dir, removed with its contents.
+class TempDir {
+ public:
+  TempDir() {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    path_ = fs::temp_directory_path() / ("placedb_index_build_" + std::to_string(::getpid()) +
+                                         "_" + info->test_suite_name() + "_" + info->name());
+    fs::remove_all(path_);
+    fs::create_directories(path_);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  std::string Path(const std::string& relative = "") const { return (path_ / relative).string(); }
+
+ private:
+  fs::path path_;
+};
+
+template <typename Exception, typename Fn>
+::testing::AssertionResult ThrowsWith(Fn&& fn, const std::string& phrase) {
+  try {
+    fn();
+  } catch (const Exception& e) {
+    const std::string message = e.what();
+    if (message.find(phrase) == std::string::npos) {
+      return ::testing::AssertionFailure() << "message '" << message << "' lacks '" << phrase << "'";
+    }
+    return ::testing::AssertionSuccess() << message;
+  } catch (const std::exception& e) {
+    return ::testing::AssertionFailure() << "wrong exception type: " << e.what();
+  }
+  return ::testing::AssertionFailure() << "nothing thrown";
+}
+
+BuildOptions SmallBuild() {
+  BuildOptions options;
+  options.threads = 2;
+  options.progress = false;
+  return options;
+}
+
+void WriteBytes(const std::string& path, const std::string& bytes) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+}
+
+// Names of entries in `dir` containing ".building.".
+std::vector<std::string> BuildingLeftovers(const std::string& dir) {
+  std::vector<std::string> found;
+  for (const auto& entry : fs::directory_iterator(dir)) {
+    const std::string name = entry.path().filename().string();
+    if (name.find(".building.") != std::string::npos) found.push_back(name);
+  }
+  return found;
+}
+
+TEST(BuilderTest, CropModesAndResizeFactors) {
+  TempDir tmp;
+  const std::vector<Frame> frames = ListImageFolder(kImages, 1, 10);
+  ASSERT_EQ(frames.size(), 10u);
+  for (CropMode crop : {CropMode::kNone, CropMode::kChroma}) {
+    for (int resize : {1, 4, 16}) {
+      SCOPED_TRACE(std::string("crop ") + CropModeName(crop) + " resize " + std::to_string(resize));
+      BuildOptions options = SmallBuild();
+      options.crop = crop;
+      options.resize = resize;
+      const std::string out =
+          tmp.Path(std::string("db_") + CropModeName(crop) + "_" + std::to_string(resize));
+      const BuildReport report = BuildDatabase(frames, options, out, "rtabmap 1..10");
+      EXPECT_EQ(report.num_frames, 10u);
+      EXPECT_EQ(report.num_keyframes, 10u);
+      EXPECT_EQ(report.num_skipped, 0u);
+      EXPECT_GT(report.num_features, 10u * (resize == 16 ? 5 : 50));
+      EXPECT_EQ(report.feature_bytes, FileSize(out + "/keyframes.bin"));
+
+      const Database db = Database::Load(out);
+      ASSERT_EQ(db.size(), 10u);
+      EXPECT_EQ(db.num_features(), report.num_features);
+      const double side = 1.0 / std::sqrt(static_cast<double>(resize));
+      size_t cropped = 0;
+      for (size_t i = 0; i < db.size(); ++i) {
+        const Keyframe& k = db.keyframe(i);
+        EXPECT_EQ(k.id, static_cast<int>(i) + 1);
+        EXPECT_EQ(k.original_size, cv::Size(512, 384));
+        EXPECT_EQ(k.source, frames[i].image_path);
+        EXPECT_EQ(k.crop & cv::Rect(0, 0, 512, 384), k.crop);  // inside the image
+        if (crop == CropMode::kNone) {
+          EXPECT_EQ(k.crop, cv::Rect(0, 0, 512, 384));
+          EXPECT_EQ(k.crop_channel, -1);
+        }
+        if (k.crop_channel >= 0) {
+          ++cropped;
+          EXPECT_LT(k.crop.area(), 512 * 384);
+        }
+        const cv::Size expected(static_cast<int>(std::lround(k.crop.width * side)),
+                                static_cast<int>(std::lround(k.crop.height * side)));
+        EXPECT_EQ(k.stored_size, expected) << "keyframe " << k.id;
+        EXPECT_NEAR(k.scale, side, 0.02);
+        // Keypoints lie in the stored image's frame.
+        for (const cv::KeyPoint& kp : db.Keypoints(i)) {
+          EXPECT_GE(kp.pt.x, 0.f);
+          EXPECT_GE(kp.pt.y, 0.f);
+          EXPECT_LT(kp.pt.x, k.stored_size.width);
+          EXPECT_LT(kp.pt.y, k.stored_size.height);
+        }
+        char name[32];
+        std::snprintf(name, sizeof(name), "images/%06d.png", k.id);
+        EXPECT_EQ(k.image_file, name);
+        const cv::Mat png = cv::imread(out + "/" + k.image_file, cv::IMREAD_UNCHANGED);
+        ASSERT_FALSE(png.empty()) << k.image_file;
+        EXPECT_EQ(png.size(), k.stored_size);
+        EXPECT_EQ(png.channels(), 3);
+      }
+      EXPECT_EQ(report.num_cropped, cropped);
+      if (crop == CropMode::kChroma) {
+        EXPECT_GT(cropped, 0u);
+      }
+
+      const nlohmann::json& info = db.info();
+      EXPECT_EQ(info["settings"]["crop"], CropModeName(crop));
+      EXPECT_EQ(info["settings"]["resize"], resize);
+      EXPECT_EQ(info["settings"]["features"]["type"], "orb");
+      EXPECT_EQ(info["source"], "rtabmap 1..10");
+      EXPECT_EQ(info["counts"]["frames"], 10);
+      EXPECT_EQ(info["counts"]["skipped_images"], 0);
+      EXPECT_EQ(info["bytes"]["images"], report.image_bytes);
+      EXPECT_EQ(info["bytes"]["images"], DirectorySize(out + "/images"));
+      EXPECT_EQ(info["bytes"]["full_frames_png"], report.full_png_bytes);
+      if (crop == CropMode::kChroma || resize > 1) {
+        EXPECT_GT(report.full_png_bytes, report.image_bytes);
+      } else {
+        EXPECT_EQ(report.full_png_bytes, report.image_bytes);  // the same PNGs
+      }
+      if (resize == 16) {
+        EXPECT_LT(report.image_bytes * 4, report.full_png_bytes);
+      }
+      EXPECT_TRUE(BuildingLeftovers(tmp.Path()).empty());
+    }
+  }
+}
+
+TEST(BuilderTest, ExtractorOptionsRoundTripThroughManifest) {
+  TempDir tmp;
+  BuildOptions options = SmallBuild();
+  options.features.orb.max_features = 123;
+  options.features.orb.fast_threshold = 17;
+  options.features.orb.num_levels = 5;
+  options.features.orb.scale_factor = 1.3;
+  options.features.surf.hessian_threshold = 321.5;
+  options.features.surf.extended = true;
+  options.features.surf.upright = true;
+  options.features.surf.max_features = 77;
+  options.features.surf.num_octaves = 3;
+  options.store_images = false;
+  const BuildReport report = BuildDatabase(ListImageFolder(kImages, 1, 3), options,
+                                           tmp.Path("db"), "three images");
+  EXPECT_EQ(report.num_keyframes, 3u);
+  EXPECT_EQ(report.image_bytes, 0u);
+  EXPECT_FALSE(fs::exists(tmp.Path("db/images")));
+  const Database db = Database::Load(tmp.Path("db"));
+  for (size_t i = 0; i < db.size(); ++i) {
+    EXPECT_LE(db.FeatureCount(i), 123u);
+    EXPECT_GT(db.FeatureCount(i), 50u);
+    EXPECT_EQ(db.keyframe(i).image_file, "");
+  }
+  const ExtractorOptions back = ExtractorOptionsFromManifest(db.info());
+  EXPECT_EQ(back.type, FeatureType::kOrb);
+  EXPECT_EQ(back.orb.max_features, 123);
+  EXPECT_EQ(back.orb.fast_threshold, 17);
+  EXPECT_EQ(back.orb.num_levels, 5);
+  EXPECT_EQ(back.orb.scale_factor, 1.3);
+  EXPECT_EQ(back.orb.edge_threshold, options.features.orb.edge_threshold);
+  EXPECT_EQ(back.orb.patch_size, options.features.orb.patch_size);
+  EXPECT_EQ(back.surf.hessian_threshold, 321.5);
+  EXPECT_TRUE(back.surf.extended);
+  EXPECT_TRUE(back.surf.upright);
+  EXPECT_EQ(back.surf.max_features, 77);
+  EXPECT_EQ(back.surf.num_octaves, 3);
+  EXPECT_EQ(back.surf.num_octave_layers, options.features.surf.num_octave_layers);
+
+  // The SURF type round-trips too (manifest only, no build needed).
+  BuildOptions surf = options;
+  surf.features.type = FeatureType::kSurf;
+  nlohmann::json manifest;
+  manifest["settings"] = BuildSettingsToJson(surf);
+  EXPECT_EQ(ExtractorOptionsFromManifest(manifest).type, FeatureType::kSurf);
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(
+      [] { ExtractorOptionsFromManifest(nlohmann::json::object()); }, "no feature settings"));
+  manifest["settings"]["features"].erase("orb");
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { ExtractorOptionsFromManifest(manifest); },
+                                             "feature settings are malformed"));
+}
+
+TEST(BuilderTest, SurfDatabase) {
+  TempDir tmp;
+  BuildOptions options = SmallBuild();
+  options.features.type = FeatureType::kSurf;
+  options.features.surf.max_features = 150;
+  options.resize = 4;
+  const BuildReport report =
+      BuildDatabase(ListImageFolder(kImages, 1, 3), options, tmp.Path("db"), "surf");
+  EXPECT_EQ(report.num_keyframes, 3u);
+  const Database db = Database::Load(tmp.Path("db"));
+  EXPECT_EQ(db.feature_type(), FeatureType::kSurf);
+  EXPECT_EQ(db.descriptor_bytes(), 256);
+  for (size_t i = 0; i < db.size(); ++i) {
+    EXPECT_GT(db.FeatureCount(i), 20u);
+    EXPECT_LE(db.FeatureCount(i), 150u);
+  }
+  EXPECT_EQ(db.info()["settings"]["features"]["type"], "surf");
+}
+
+TEST(BuilderTest, UnreadableImageIsSkippedOrFatalWhenStrict) {
+  TempDir tmp;
+  const std::string folder = tmp.Path("images");
+  fs::create_directories(folder);
+  for (const char* name : {"001.jpg", "002.jpg", "003.jpg"}) {
+    fs::copy_file(kImages + "/" + name, folder + "/" + name);
+  }
+  WriteBytes(folder + "/x.jpg", "this is not a JPEG at all");
+  const std::vector<Frame> frames = ListImageFolder(folder);
+  ASSERT_EQ(frames.size(), 4u);
+
+  const BuildReport report = BuildDatabase(frames, SmallBuild(), tmp.Path("db"), "mixed");
+  EXPECT_EQ(report.num_frames, 4u);
+  EXPECT_EQ(report.num_keyframes, 3u);
+  EXPECT_EQ(report.num_skipped, 1u);
+  ASSERT_EQ(report.skipped.size(), 1u);
+  EXPECT_EQ(fs::path(report.skipped[0]).filename(), "x.jpg");
+  const Database db = Database::Load(tmp.Path("db"));
+  EXPECT_EQ(db.size(), 3u);
+  EXPECT_EQ(db.IndexOfId(4), -1);  // x.jpg was frame 4
+  EXPECT_EQ(db.info()["counts"]["skipped_images"], 1);
+  EXPECT_EQ(db.info()["counts"]["frames"], 4);
+
+  BuildOptions strict = SmallBuild();
+  strict.strict = true;
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(
+      [&] { BuildDatabase(frames, strict, tmp.Path("strict_db"), "mixed"); }, "cannot read image"));
+  EXPECT_FALSE(fs::exists(tmp.Path("strict_db")));
+  EXPECT_TRUE(BuildingLeftovers(tmp.Path()).empty());
+}
+
+TEST(BuilderTest, ExistingDatabaseNeedsOverwrite) {
+  TempDir tmp;
+  const std::string out = tmp.Path("db");
+  BuildOptions options = SmallBuild();
+  EXPECT_EQ(BuildDatabase(ListImageFolder(kImages, 1, 5), options, out, "five").num_keyframes, 5u);
+  const std::string bin5 = ReadFileToString(out + "/keyframes.bin");
+
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+      [&] { BuildDatabase(ListImageFolder(kImages, 1, 8), options, out, "eight"); },
+      "a database already exists"));
+  EXPECT_EQ(ReadFileToString(out + "/keyframes.bin"), bin5);
+
+  options.overwrite = true;
+  EXPECT_EQ(BuildDatabase(ListImageFolder(kImages, 1, 8), options, out, "eight").num_keyframes, 8u);
+  Database db = Database::Load(out);
+  EXPECT_EQ(db.size(), 8u);
+  EXPECT_EQ(db.info()["source"], "eight");
+  EXPECT_TRUE(fs::exists(out + "/images/000008.png"));
+  const std::string bin8 = ReadFileToString(out + "/keyframes.bin");
+  const std::string manifest8 = ReadFileToString(out + "/manifest.json");
+
+  // A failed overwrite (every image unreadable) leaves the old database as it was.
+  const std::string junk = tmp.Path("junk");
+  fs::create_directories(junk);
+  WriteBytes(junk + "/a.jpg", "garbage");
+  WriteBytes(junk + "/b.png", "more garbage");
+  const std::vector<Frame> unreadable = ListImageFolder(junk);
+  ASSERT_EQ(unreadable.size(), 2u);
+  BuildOptions strict = options;
+  strict.strict = true;
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { BuildDatabase(unreadable, strict, out, "x"); },
+                                             "cannot read image"));
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { BuildDatabase(unreadable, options, out, "x"); },
+                                             "none of the 2 images could be read"));
+  db = Database::Load(out);
+  EXPECT_EQ(db.size(), 8u);
+  EXPECT_EQ(ReadFileToString(out + "/keyframes.bin"), bin8);
+  EXPECT_EQ(ReadFileToString(out + "/manifest.json"), manifest8);
+  EXPECT_TRUE(fs::exists(out + "/images/000008.png"));
+  EXPECT_TRUE(BuildingLeftovers(tmp.Path()).empty());
+}
+
+TEST(BuilderTest, RefusesNonDatabaseOutputs) {
+  TempDir tmp;
+  const std::vector<Frame> frames = ListImageFolder(kImages, 1, 2);
+  BuildOptions options = SmallBuild();
+  options.overwrite = true;  // even with overwrite
+  const std::string other = tmp.Path("my_documents");
+  fs::create_directories(other);
+  WriteBytes(other + "/notes.txt", "precious");
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { BuildDatabase(frames, options, other, "x"); },
+                                                "is not empty and is not a placedb database"));
+  EXPECT_EQ(ReadFileToString(other + "/notes.txt"), "precious");
+  EXPECT_FALSE(fs::exists(other + "/manifest.json"));
+
+  const std::string file = tmp.Path("a_file");
+  WriteBytes(file, "content");
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { BuildDatabase(frames, options, file, "x"); },
+                                                "is not a directory"));
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+      [&] { BuildDatabase({}, options, tmp.Path("empty_db"), "x"); }, "no frames"));
+  BuildOptions bad = options;
+  bad.resize = 2;
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+      [&] { BuildDatabase(frames, bad, tmp.Path("bad_db"), "x"); }, "resize must be 1, 4 or 16"));
+  EXPECT_FALSE(fs::exists(tmp.Path("bad_db")));
+
+  // An existing empty directory is fine.
+  const std::string empty = tmp.Path("empty_dir");
+  fs::create_directories(empty);
+  EXPECT_EQ(BuildDatabase(frames, SmallBuild(), empty, "x").num_keyframes, 2u);
+  EXPECT_EQ(Database::Load(empty).size(), 2u);
+  EXPECT_TRUE(BuildingLeftovers(tmp.Path()).empty());
+}
+
+TEST(BuilderTest, TinyImagesGiveKeyframesWithoutFeatures) {
+  TempDir tmp;
+  const std::string folder = tmp.Path("tiny");
+  fs::create_directories(folder);
+  cv::RNG rng(7);
+  for (const char* name : {"a.png", "b.png"}) {
+    cv::Mat img(15, 20, CV_8UC3);
+    rng.fill(img, cv::RNG::UNIFORM, 0, 256);
+    ASSERT_TRUE(cv::imwrite(folder + "/" + name, img));
+  }
+  for (CropMode crop : {CropMode::kNone, CropMode::kChroma}) {
+    BuildOptions options = SmallBuild();
+    options.crop = crop;
+    options.resize = 4;
+    const std::string out = tmp.Path(std::string("db_") + CropModeName(crop));
+    const BuildReport report = BuildDatabase(ListImageFolder(folder), options, out, "tiny");
+    EXPECT_EQ(report.num_keyframes, 2u);
+    EXPECT_EQ(report.num_features, 0u);
+    const Database db = Database::Load(out);
+    ASSERT_EQ(db.size(), 2u);
+    EXPECT_EQ(db.num_features(), 0u);
+    for (size_t i = 0; i < db.size(); ++i) {
+      EXPECT_EQ(db.FeatureCount(i), 0u);
+      EXPECT_EQ(db.keyframe(i).original_size, cv::Size(20, 15));
+      EXPECT_EQ(db.Descriptors(i).rows, 0);
+    }
+    if (crop == CropMode::kNone) {
+      EXPECT_EQ(db.keyframe(0).stored_size, cv::Size(10, 8));
+    }
+  }
+}
+
+// Runs a 40-image overwrite build in a forked child and kills it (SIGKILL)
+// mid-way: the database already at the path must still load, unchanged.
+TEST(BuilderTest, KilledBuildLeavesPreviousDatabase) {
+  TempDir tmp;
+  const std::string out = tmp.Path("db");
+  ASSERT_EQ(BuildDatabase(ListImageFolder(kImages, 1, 10), SmallBuild(), out, "old").num_keyframes,
+            10u);
+  const std::string old_bin = ReadFileToString(out + "/keyframes.bin");
+  const std::vector<Frame> frames40 = ListImageFolder(kImages, 1, 40);
+  ASSERT_EQ(frames40.size(), 40u);
+  BuildOptions child_options = SmallBuild();
+  child_options.overwrite = true;
+  child_options.crop = CropMode::kChroma;
+
+  // The child must not depend on thread pools of the parent (OpenCV's
+  // TBB workers do not survive fork): run OpenCV sequentially meanwhile.
+  const int saved_threads = cv::getNumThreads();
+  cv::setNumThreads(0);
+  auto spawn = [&]() -> pid_t {
+    const pid_t pid = ::fork();
+    if (pid == 0) {
+      int code = 0;
+      try {
+        BuildDatabase(frames40, child_options, out, "new");
+      } catch (...) {
+        code = 3;
+      }
+      ::_exit(code);
+    }
+    return pid;
+  };
+
+  int killed_mid_build = 0;
+  for (int delay_ms : {50, 80, 110, 150}) {
+    SCOPED_TRACE("kill after " + std::to_string(delay_ms) + " ms");
+    const pid_t pid = spawn();
+    ASSERT_GT(pid, 0);
+    std::this_thread::sleep_for(std::chrono::milliseconds(delay_ms));
+    const bool building = fs::exists(out + ".building." + std::to_string(pid));
+    ASSERT_EQ(::kill(pid, SIGKILL), 0);
+    int status = 0;
+    ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+    ASSERT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL)
+        << "the child finished before it was killed; the test needs a slower build";
+    if (building) ++killed_mid_build;
+    const Database db = Database::Load(out);
+    EXPECT_EQ(db.size(), 10u);
+    EXPECT_EQ(db.info()["source"], "old");
+    EXPECT_EQ(ReadFileToString(out + "/keyframes.bin"), old_bin);
+    for (const std::string& left : BuildingLeftovers(tmp.Path())) fs::remove_all(tmp.Path(left));
+  }
+  EXPECT_GE(killed_mid_build, 3);  // the child was really building when killed
+
+  // Left alone, the same child replaces the database (so the kills above
+  // did interrupt a build that would have succeeded).
+  const pid_t pid = spawn();
+  ASSERT_GT(pid, 0);
+  int status = 0;
+  pid_t done = 0;
+  for (int waited = 0; waited < 1200 && done == 0; ++waited) {
+    done = ::waitpid(pid, &status, WNOHANG);
+    if (done == 0) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  if (done == 0) {
+    ::kill(pid, SIGKILL);
+    ::waitpid(pid, &status, 0);
+    FAIL() << "the child build did not finish within 60 s";
+  }
+  cv::setNumThreads(saved_threads);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 0);
+  const Database db = Database::Load(out);
+  EXPECT_EQ(db.size(), 40u);
+  EXPECT_EQ(db.info()["source"], "new");
+  EXPECT_TRUE(BuildingLeftovers(tmp.Path()).empty());
+}
+
+}  // namespace
+}  // namespace placedb

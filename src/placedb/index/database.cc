@@ -150,6 +150,11 @@ std::string Database::EncodeKeyframes() const {
 
 void Database::DecodeKeyframes(const std::string& bytes, const std::string& path) {
   if (!HostIsLittleEndian()) PLACEDB_THROW_RUNTIME("placedb databases need a little-endian host");
+  // A file cut inside the magic (a prefix of it, or empty) is truncated, not
+  // a different kind of file.
+  if (bytes.size() < sizeof(kMagic) && std::memcmp(bytes.data(), kMagic, bytes.size()) == 0) {
+    PLACEDB_THROW_RUNTIME(path, ": file is truncated (", bytes.size(), " bytes)");
+  }
   if (bytes.size() < sizeof(kMagic) || std::memcmp(bytes.data(), kMagic, sizeof(kMagic)) != 0) {
     PLACEDB_THROW_RUNTIME(path, ": not a placedb keyframe file (wrong magic)");
   }

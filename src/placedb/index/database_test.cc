@@ -1,0 +1,418 @@
+#include "placedb/index/database.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "placedb/feature/extractor.h"
+#include "placedb/util/file_io.h"
+
+namespace placedb {
+namespace {
+namespace fs = std::filesystem;
+
+// A fresh directory under the system temp dir, removed with its contents.
+class TempDir {
+ public:
+  TempDir() {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    path_ = fs::temp_directory_path() / ("placedb_index_db_" + std::to_string(::getpid()) + "_" +
+                                         info->test_suite_name() + "_" + info->name());
+    fs::remove_all(path_);
+    fs::create_directories(path_);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  std::string Path(const std::string& relative = "") const { return (path_ / relative).string(); }
+
+ private:
+  fs::path path_;
+};
+
+template <typename Exception, typename Fn>
+::testing::AssertionResult ThrowsWith(Fn&& fn, const std::string& phrase) {
+  try {
+    fn();
+  } catch (const Exception& e) {
+    const std::string message = e.what();
+    if (message.find(phrase) == std::string::npos) {
+      return ::testing::AssertionFailure() << "message '" << message << "' lacks '" << phrase << "'";
+    }
+    return ::testing::AssertionSuccess() << message;
+  } catch (const std::exception& e) {
+    return ::testing::AssertionFailure() << "wrong exception type: " << e.what();
+  }
+  return ::testing::AssertionFailure() << "nothing thrown";
+}
+
+std::string ImagePath(int n) {
+  char name[64];
+  std::snprintf(name, sizeof(name), PLACEDB_DATA_DIR "/rtabmap_loop/images/%03d.jpg", n);
+  return name;
+}
+
+void WriteBytes(const std::string& path, const std::string& bytes) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  ASSERT_TRUE(out.good()) << path;
+}
+
+// A database of `n` real images (ids 1..n): each keyframe a crop of the
+// image resized to half size, features extracted on the stored image. Odd
+// ids get a pose when `with_poses`.
+Database MakeDatabase(const ExtractorOptions& options, int n, bool with_poses) {
+  const auto extractor = FeatureExtractor::Create(options);
+  const int bytes = options.type == FeatureType::kOrb ? 32 : (options.surf.extended ? 128 : 64) * 4;
+  Database db(options.type, bytes);
+  for (int i = 1; i <= n; ++i) {
+    const cv::Mat image = cv::imread(ImagePath(i));
+    EXPECT_FALSE(image.empty());
+    Keyframe k;
+    k.id = i * 10;  // ids need not be positions
+    k.timestamp = with_poses ? 100.0 + 0.25 * i : -1.0;
+    k.crop = cv::Rect(8 * i, 4 * i, 320, 240);
+    k.crop_channel = i % 3;
+    k.original_size = image.size();
+    cv::Mat stored;
+    cv::resize(image(k.crop), stored, cv::Size(160, 120), 0, 0, cv::INTER_AREA);
+    k.stored_size = stored.size();
+    k.scale = 0.5;
+    k.source = ImagePath(i);
+    k.image_file = i == 2 ? "" : "images/" + std::to_string(i) + ".png";  // one without image
+    if (with_poses && i % 2 == 1) {
+      Pose pose;
+      pose.translation = Eigen::Vector3d(0.1 * i, -2.5, 3.0 + i);
+      pose.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(0.1 * i, Eigen::Vector3d(1, 2, 3).normalized()));
+      k.pose = pose;
+    }
+    db.AddKeyframe(k, extractor->Extract(stored));
+  }
+  db.info()["settings"] = {{"crop", "chroma"}, {"resize", 4}};
+  db.info()["source"] = "database_test";
+  db.info()["counts"]["frames"] = n;
+  return db;
+}
+
+void ExpectKeyframesEqual(const Keyframe& a, const Keyframe& b) {
+  EXPECT_EQ(a.id, b.id);
+  EXPECT_EQ(a.timestamp, b.timestamp);
+  EXPECT_EQ(a.crop, b.crop);
+  EXPECT_EQ(a.crop_channel, b.crop_channel);
+  EXPECT_EQ(a.original_size, b.original_size);
+  EXPECT_EQ(a.stored_size, b.stored_size);
+  EXPECT_EQ(a.scale, b.scale);
+  EXPECT_EQ(a.source, b.source);
+  EXPECT_EQ(a.image_file, b.image_file);
+  ASSERT_EQ(a.pose.has_value(), b.pose.has_value()) << "keyframe " << a.id;
+  if (a.pose) {
+    EXPECT_EQ(a.pose->translation, b.pose->translation);
+    EXPECT_EQ(a.pose->rotation.coeffs(), b.pose->rotation.coeffs());
+  }
+}
+
+void ExpectDatabasesEqual(const Database& a, const Database& b) {
+  EXPECT_EQ(a.feature_type(), b.feature_type());
+  EXPECT_EQ(a.descriptor_bytes(), b.descriptor_bytes());
+  ASSERT_EQ(a.size(), b.size());
+  EXPECT_EQ(a.num_features(), b.num_features());
+  for (size_t i = 0; i < a.size(); ++i) {
+    ExpectKeyframesEqual(a.keyframe(i), b.keyframe(i));
+    ASSERT_EQ(a.FeatureCount(i), b.FeatureCount(i));
+    const auto ka = a.Keypoints(i), kb = b.Keypoints(i);
+    ASSERT_EQ(ka.size(), kb.size());
+    for (size_t j = 0; j < ka.size(); ++j) {
+      EXPECT_EQ(ka[j].pt, kb[j].pt);
+      EXPECT_EQ(ka[j].size, kb[j].size);
+      EXPECT_EQ(ka[j].angle, kb[j].angle);
+      EXPECT_EQ(ka[j].response, kb[j].response);
+      EXPECT_EQ(ka[j].octave, kb[j].octave);
+      EXPECT_EQ(ka[j].class_id, kb[j].class_id);
+    }
+    const DescriptorBlock da = a.Descriptors(i), dbk = b.Descriptors(i);
+    EXPECT_EQ(da.type, dbk.type);
+    ASSERT_EQ(da.rows, dbk.rows);
+    ASSERT_EQ(da.row_bytes, dbk.row_bytes);
+    if (da.rows > 0) {
+      EXPECT_EQ(0, std::memcmp(da.data, dbk.data, static_cast<size_t>(da.rows) * da.row_bytes));
+    }
+    ASSERT_EQ(da.laplacian == nullptr, dbk.laplacian == nullptr);
+    if (da.laplacian != nullptr && da.rows > 0) {
+      EXPECT_EQ(0, std::memcmp(da.laplacian, dbk.laplacian, da.rows));
+    }
+  }
+}
+
+// Every key the builder put in info() comes back with the same value (Save
+// adds its own keys: format, counts, files...).
+void ExpectInfoPreserved(const nlohmann::json& original, const nlohmann::json& loaded) {
+  for (const auto& [key, value] : original.items()) {
+    ASSERT_TRUE(loaded.contains(key)) << key;
+    if (key == "counts") {
+      for (const auto& [k, v] : value.items()) EXPECT_EQ(loaded["counts"][k], v) << k;
+    } else {
+      EXPECT_EQ(loaded[key], value) << key;
+    }
+  }
+}
+
+void RoundTrip(const ExtractorOptions& options, bool with_poses) {
+  TempDir tmp;
+  const Database db = MakeDatabase(options, 3, with_poses);
+  ASSERT_EQ(db.size(), 3u);
+  EXPECT_GT(db.num_features(), 30u);  // real features, not an empty database
+  for (size_t i = 0; i < db.size(); ++i) EXPECT_GT(db.FeatureCount(i), 10u) << i;
+  db.Save(tmp.Path());
+  EXPECT_TRUE(fs::exists(tmp.Path("manifest.json")));
+  EXPECT_TRUE(fs::exists(tmp.Path("keyframes.bin")));
+  const Database loaded = Database::Load(tmp.Path());
+  ExpectDatabasesEqual(db, loaded);
+  ExpectInfoPreserved(db.info(), loaded.info());
+  EXPECT_EQ(loaded.info()["format"], "placedb-database");
+  EXPECT_EQ(loaded.info()["format_version"], kDatabaseFormatVersion);
+  EXPECT_EQ(loaded.info()["feature_type"], FeatureTypeName(options.type));
+  EXPECT_EQ(loaded.info()["counts"]["keyframes"], 3u);
+  EXPECT_EQ(loaded.info()["counts"]["features"], db.num_features());
+  EXPECT_EQ(loaded.info()["files"]["keyframes_bytes"], FileSize(tmp.Path("keyframes.bin")));
+  EXPECT_EQ(loaded.IndexOfId(20), 1);
+  EXPECT_EQ(loaded.IndexOfId(2), -1);
+  EXPECT_EQ(loaded.keyframe(0).pose.has_value(), with_poses);
+  EXPECT_FALSE(loaded.keyframe(1).pose.has_value());
+
+  // Saving the loaded database again gives the same bytes and manifest.
+  const std::string bin1 = ReadFileToString(tmp.Path("keyframes.bin"));
+  const std::string dir2 = tmp.Path("again");
+  fs::create_directories(dir2);
+  loaded.Save(dir2);
+  EXPECT_EQ(ReadFileToString(dir2 + "/keyframes.bin"), bin1);
+  const Database loaded2 = Database::Load(dir2);
+  ExpectDatabasesEqual(db, loaded2);
+  EXPECT_EQ(loaded2.info(), loaded.info());
+}
+
+TEST(DatabaseTest, RoundTripOrbWithPoses) {
+  RoundTrip(ExtractorOptions(), /*with_poses=*/true);
+}
+
+TEST(DatabaseTest, RoundTripOrbWithoutPoses) {
+  RoundTrip(ExtractorOptions(), /*with_poses=*/false);
+}
+
+TEST(DatabaseTest, RoundTripSurf) {
+  ExtractorOptions options;
+  options.type = FeatureType::kSurf;
+  options.surf.max_features = 200;
+  RoundTrip(options, /*with_poses=*/true);
+  // Laplacian signs come back and both signs are present.
+  TempDir tmp;
+  const Database db = MakeDatabase(options, 1, false);
+  EXPECT_EQ(db.descriptor_bytes(), 256);
+  db.Save(tmp.Path());
+  const Database loaded = Database::Load(tmp.Path());
+  EXPECT_EQ(loaded.feature_type(), FeatureType::kSurf);
+  const DescriptorBlock block = loaded.Descriptors(0);
+  ASSERT_NE(block.laplacian, nullptr);
+  int positive = 0, negative = 0;
+  for (int r = 0; r < block.rows; ++r) (block.laplacian[r] > 0 ? positive : negative)++;
+  EXPECT_GT(positive, 0);
+  EXPECT_GT(negative, 0);
+}
+
+TEST(DatabaseTest, EmptyDatabaseRoundTrip) {
+  TempDir tmp;
+  Database db(FeatureType::kOrb, 32);
+  db.Save(tmp.Path());
+  const Database loaded = Database::Load(tmp.Path());
+  EXPECT_TRUE(loaded.empty());
+  EXPECT_EQ(loaded.num_features(), 0u);
+  EXPECT_EQ(loaded.feature_type(), FeatureType::kOrb);
+}
+
+TEST(DatabaseTest, KeyframeToOriginal) {
+  Keyframe k;
+  k.crop = cv::Rect(100, 50, 200, 160);
+  k.scale = 0.5;
+  const cv::Point2f p = k.ToOriginal({10.f, 20.f});
+  EXPECT_FLOAT_EQ(p.x, 120.f);
+  EXPECT_FLOAT_EQ(p.y, 90.f);
+  const cv::Point2f origin = k.ToOriginal({0.f, 0.f});
+  EXPECT_FLOAT_EQ(origin.x, 100.f);
+  EXPECT_FLOAT_EQ(origin.y, 50.f);
+  k.scale = 0.25;
+  const cv::Point2f far = k.ToOriginal({50.f, 40.f});  // stored corner -> crop corner
+  EXPECT_FLOAT_EQ(far.x, 300.f);
+  EXPECT_FLOAT_EQ(far.y, 210.f);
+  Keyframe whole;  // no crop, scale 1: identity
+  const cv::Point2f same = whole.ToOriginal({33.5f, 7.25f});
+  EXPECT_FLOAT_EQ(same.x, 33.5f);
+  EXPECT_FLOAT_EQ(same.y, 7.25f);
+}
+
+// A saved 3-keyframe ORB database each corruption test starts from.
+class DatabaseFileTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() { db_ = new Database(MakeDatabase(ExtractorOptions(), 3, true)); }
+  static void TearDownTestSuite() {
+    delete db_;
+    db_ = nullptr;
+  }
+  void SetUp() override {
+    db_->Save(tmp_.Path());
+    bin_ = tmp_.Path("keyframes.bin");
+    bytes_ = ReadFileToString(bin_);
+    ASSERT_GT(bytes_.size(), 1000u);
+  }
+  std::string Dir() const { return tmp_.Path(); }
+  auto LoadFn() const {
+    return [dir = Dir()] { Database::Load(dir); };
+  }
+
+  static Database* db_;
+  TempDir tmp_;
+  std::string bin_;
+  std::string bytes_;
+};
+Database* DatabaseFileTest::db_ = nullptr;
+
+TEST_F(DatabaseFileTest, TruncatedKeyframesFile) {
+  const size_t header = 8 + 4 * 4 + 3 * 8;  // magic, 4 x u32, 3 x u64
+  const size_t size = bytes_.size();
+  for (size_t cut : {size_t{0}, size_t{4}, size_t{10}, size_t{20}, header, header + 100,
+                     header + 3 * 152 + 50, size / 2, size - 5, size - 1}) {
+    WriteBytes(bin_, bytes_.substr(0, cut));
+    EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "truncated")) << "cut at " << cut;
+  }
+  // The intact file loads again.
+  WriteBytes(bin_, bytes_);
+  EXPECT_EQ(Database::Load(Dir()).size(), 3u);
+}
+
+TEST_F(DatabaseFileTest, CorruptedByteFailsChecksum) {
+  for (size_t at : {bytes_.size() / 2, bytes_.size() / 3, bytes_.size() - 10}) {
+    std::string bad = bytes_;
+    bad[at] = static_cast<char>(bad[at] ^ 0x10);
+    WriteBytes(bin_, bad);
+    EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "checksum mismatch")) << "byte " << at;
+  }
+  // Trailing garbage is caught too.
+  WriteBytes(bin_, bytes_ + "xyz");
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "unexpected trailing bytes"));
+}
+
+TEST_F(DatabaseFileTest, WrongVersionInBinary) {
+  std::string bad = bytes_;
+  const uint32_t version = kDatabaseFormatVersion + 1;
+  std::memcpy(&bad[8], &version, 4);
+  const uint32_t crc = Crc32(bad.data(), bad.size() - 4);  // only the version is wrong
+  std::memcpy(&bad[bad.size() - 4], &crc, 4);
+  WriteBytes(bin_, bad);
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(
+      LoadFn(), "format version " + std::to_string(version) + " is not supported"));
+}
+
+TEST_F(DatabaseFileTest, WrongVersionInManifest) {
+  nlohmann::json manifest = nlohmann::json::parse(ReadFileToString(Dir() + "/manifest.json"));
+  manifest["format_version"] = kDatabaseFormatVersion + 1;
+  WriteBytes(Dir() + "/manifest.json", manifest.dump(2));
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(
+      LoadFn(), "database format version " + std::to_string(kDatabaseFormatVersion + 1) +
+                    " is not supported"));
+}
+
+TEST_F(DatabaseFileTest, WrongMagic) {
+  std::string bad = bytes_;
+  bad[0] = 'X';
+  WriteBytes(bin_, bad);
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "wrong magic"));
+  WriteBytes(bin_, "this is a text file, not a database\n");
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "wrong magic"));
+}
+
+TEST_F(DatabaseFileTest, ManifestFeatureTypeDisagreesWithBinary) {
+  nlohmann::json manifest = nlohmann::json::parse(ReadFileToString(Dir() + "/manifest.json"));
+  ASSERT_EQ(manifest["feature_type"], "orb");
+  manifest["feature_type"] = "surf";
+  WriteBytes(Dir() + "/manifest.json", manifest.dump(2));
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "manifest says 'surf' features but"));
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "holds 'orb' features"));
+}
+
+TEST_F(DatabaseFileTest, ManifestCountDisagreesWithBinary) {
+  nlohmann::json manifest = nlohmann::json::parse(ReadFileToString(Dir() + "/manifest.json"));
+  manifest["counts"]["keyframes"] = 4;
+  WriteBytes(Dir() + "/manifest.json", manifest.dump(2));
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "disagree on the number of keyframes"));
+}
+
+TEST_F(DatabaseFileTest, MissingManifest) {
+  fs::remove(Dir() + "/manifest.json");
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "manifest.json is missing"));
+}
+
+TEST_F(DatabaseFileTest, MissingKeyframesFile) {
+  fs::remove(bin_);
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "keyframes.bin is missing"));
+}
+
+TEST_F(DatabaseFileTest, NotADirectory) {
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { Database::Load(Dir() + "/nothing_here"); },
+                                             "(not a directory)"));
+  EXPECT_TRUE(
+      ThrowsWith<std::runtime_error>([&] { Database::Load(bin_); }, "(not a directory)"));
+}
+
+TEST_F(DatabaseFileTest, ManifestNotJson) {
+  WriteBytes(Dir() + "/manifest.json", "{ not json");
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "not valid JSON"));
+  WriteBytes(Dir() + "/manifest.json", "{\"format\": \"something-else\"}");
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "not a placedb database manifest"));
+}
+
+TEST(DatabaseTest, AddingSurfFeaturesToOrbDatabaseThrows) {
+  Database db = MakeDatabase(ExtractorOptions(), 1, false);
+  ASSERT_EQ(db.size(), 1u);
+  ExtractorOptions surf;
+  surf.type = FeatureType::kSurf;
+  surf.surf.max_features = 50;
+  const FeatureSet features = FeatureExtractor::Create(surf)->Extract(cv::imread(ImagePath(5)));
+  ASSERT_FALSE(features.empty());
+  Keyframe k;
+  k.id = 99;
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { db.AddKeyframe(k, features); },
+                                                "cannot add surf features to a database of orb"));
+  EXPECT_EQ(db.size(), 1u);  // unchanged
+  // A SURF database refuses ORB features the same way.
+  Database surf_db(FeatureType::kSurf, 256);
+  const FeatureSet orb = FeatureExtractor::Create(ExtractorOptions())->Extract(cv::imread(ImagePath(5)));
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { surf_db.AddKeyframe(k, orb); },
+                                                "cannot add orb features to a database of surf"));
+  EXPECT_TRUE(surf_db.empty());
+}
+
+TEST(DatabaseTest, DuplicateKeyframeIdThrows) {
+  Database db = MakeDatabase(ExtractorOptions(), 2, false);  // ids 10, 20
+  const size_t features = db.num_features();
+  const FeatureSet set = FeatureExtractor::Create(ExtractorOptions())->Extract(cv::imread(ImagePath(7)));
+  Keyframe k;
+  k.id = 20;
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { db.AddKeyframe(k, set); },
+                                                "duplicate keyframe id 20"));
+  EXPECT_EQ(db.size(), 2u);
+  EXPECT_EQ(db.num_features(), features);
+  k.id = 21;
+  db.AddKeyframe(k, set);
+  EXPECT_EQ(db.size(), 3u);
+  EXPECT_EQ(db.num_features(), features + set.size());
+}
+
+}  // namespace
+}  // namespace placedb

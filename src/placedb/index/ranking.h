@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <ostream>
 #include <vector>
 
 namespace placedb {
@@ -16,6 +17,11 @@ struct ScoredKeyframe {
     return keyframe_id == o.keyframe_id && score == o.score;
   }
 };
+
+// For test failure messages: "{id: score}".
+inline std::ostream& operator<<(std::ostream& os, const ScoredKeyframe& s) {
+  return os << "{" << s.keyframe_id << ": " << s.score << "}";
+}
 
 // Ranking order: higher score first; equal scores by lower keyframe id, so
 // every ranking is deterministic whatever produced it.

@@ -38,8 +38,10 @@ struct MatchOptions {
   // count. Default 64.
   int max_hamming = 64;
   // SURF: a match also needs an L2 distance of at most this (descriptors are
-  // unit vectors); 0 disables the limit. Default 0.
-  double max_l2 = 0.0;
+  // unit vectors, unrelated ones ~0.5-0.7 apart); 0 disables the limit.
+  // Default 0.25 (on data/rtabmap_loop with chroma crops: recall@1 0.86 at
+  // 0.25, 0.59 with no limit).
+  double max_l2 = 0.25;
   // Use the Laplacian sign to reject SURF candidates early. Default true.
   bool use_laplacian_sign = true;
 

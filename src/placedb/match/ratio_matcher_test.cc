@@ -75,6 +75,7 @@ TEST(RatioMatcherTest, SurfLaplacianSignRejects) {
   std::vector<int8_t> lq, ld;
   std::vector<cv::DMatch> matches;
   MatchOptions options;
+  options.max_l2 = 0;  // the same-sign descriptor is far: no distance limit here
   EXPECT_EQ(CountRatioMatches(MakeDescriptorBlock(q, &lq), MakeDescriptorBlock(d, &ld), options,
                               &matches),
             1);
@@ -86,6 +87,25 @@ TEST(RatioMatcherTest, SurfLaplacianSignRejects) {
   // Without the sign the exact copy is nearest (ratio 0 < 0.8 x d2).
   ASSERT_EQ(matches.size(), 1u);
   EXPECT_EQ(matches[0].trainIdx, 0);
+}
+
+TEST(RatioMatcherTest, DistanceLimitsRejectFarMatches) {
+  const FeatureSet a = Orb(PLACEDB_DATA_DIR "/rtabmap_loop/images/042.jpg");
+  const FeatureSet b = Orb(PLACEDB_DATA_DIR "/rtabmap_loop/images/002.jpg");
+  MatchOptions loose;
+  loose.max_hamming = 0;
+  MatchOptions strict;
+  strict.max_hamming = 30;
+  std::vector<cv::DMatch> matches;
+  const int all = CountRatioMatches(MakeDescriptorBlock(a, nullptr),
+                                    MakeDescriptorBlock(b, nullptr), loose, &matches);
+  int within = 0;
+  for (const auto& m : matches) within += m.distance <= 30;
+  const int limited = CountRatioMatches(MakeDescriptorBlock(a, nullptr),
+                                        MakeDescriptorBlock(b, nullptr), strict);
+  EXPECT_EQ(limited, within);
+  EXPECT_LT(limited, all);
+  EXPECT_GT(limited, 0);
 }
 
 TEST(RatioMatcherTest, EmptyInputs) {

@@ -1,0 +1,19 @@
+#!/usr/bin/env bash
+# Benchmarks, each reporting ours next to a baseline measured in the same run:
+#   match_bench   matching kernels vs OpenCV BFMatcher (Google Benchmark)
+#   surf_bench    our SURF vs OpenCV SIFT and ORB (Google Benchmark)
+#   placedb bench whole queries vs the paper's BFMatcher loop
+set -euo pipefail
+BUILD_DIR=${1:-build}
+PLACEDB="$BUILD_DIR/src/placedb/exe/placedb"
+OUT=out/bench
+mkdir -p "$OUT"
+"$BUILD_DIR/bench/match_bench" --benchmark_out="$OUT/match_bench.json" --benchmark_out_format=json
+"$BUILD_DIR/bench/surf_bench" --benchmark_out="$OUT/surf_bench.json" --benchmark_out_format=json
+"$PLACEDB" build --images data/rtabmap_loop/images --last 40 --out "$OUT/db_orb" --overwrite --quiet
+"$PLACEDB" bench --db "$OUT/db_orb" --images data/rtabmap_loop/images --first 41 --queries 0 \
+  --repeat 5 --json "$OUT/placedb_bench_orb.json"
+"$PLACEDB" build --images data/rtabmap_loop/images --last 40 --features surf --out "$OUT/db_surf" \
+  --overwrite --quiet
+"$PLACEDB" bench --db "$OUT/db_surf" --images data/rtabmap_loop/images --first 41 --queries 0 \
+  --repeat 3 --json "$OUT/placedb_bench_surf.json" || true

@@ -1,0 +1,46 @@
+#!/usr/bin/env bash
+# Installs the Debian (bookworm) packages placedb needs to build, test and run
+# its demo. Idempotent: packages already installed are skipped, and apt is
+# not touched at all when nothing is missing.
+set -euo pipefail
+
+PACKAGES=(
+  g++ cmake make pkg-config
+  libopencv-dev          # ORB, FAST, SIFT, BFMatcher, image I/O
+  libcli11-dev           # command line
+  libfmt-dev libspdlog-dev
+  nlohmann-json3-dev     # manifests, reports
+  libeigen3-dev          # poses
+  zlib1g-dev             # CRC-32 of the database files
+  libgtest-dev libgmock-dev
+  libbenchmark-dev       # Google Benchmark
+)
+
+missing=()
+for pkg in "${PACKAGES[@]}"; do
+  [[ "$pkg" == \#* ]] && continue
+  if ! dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$pkg")
+  fi
+done
+
+if [[ ${#missing[@]} -eq 0 ]]; then
+  echo "install_deps: all ${#PACKAGES[@]} packages present"
+  exit 0
+fi
+
+SUDO=""
+if [[ $(id -u) -ne 0 ]]; then
+  if command -v sudo >/dev/null 2>&1; then
+    SUDO="sudo"
+  else
+    echo "install_deps: need root to install: ${missing[*]}" >&2
+    echo "  run: apt-get install -y ${missing[*]}" >&2
+    exit 1
+  fi
+fi
+
+echo "install_deps: installing ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"

@@ -1,0 +1,194 @@
+// Runs the placedb binary as a user would: every sub-command, the bad-input
+// cases, and the exit codes and one-line errors.
+#include <sys/wait.h>
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+namespace {
+namespace fs = std::filesystem;
+
+const std::string kBinary = PLACEDB_BINARY;
+const std::string kImages = PLACEDB_DATA_DIR "/rtabmap_loop/images";
+const std::string kTruth = PLACEDB_DATA_DIR "/rtabmap_loop/ground_truth.csv";
+
+struct CommandResult {
+  int code = -1;
+  std::string output;  // stdout and stderr
+};
+
+CommandResult Placedb(const std::string& args) {
+  CommandResult run;
+  const std::string cmd = kBinary + " " + args + " 2>&1";
+  FILE* pipe = popen(cmd.c_str(), "r");
+  if (pipe == nullptr) return run;
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof(buf), pipe)) > 0) run.output.append(buf, n);
+  const int status = pclose(pipe);
+  run.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return run;
+}
+
+bool Contains(const std::string& text, const std::string& part) {
+  return text.find(part) != std::string::npos;
+}
+
+class CliTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("placedb_cli_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
+
+  fs::path dir_;
+};
+
+TEST_F(CliTest, HelpListsEverySubcommandAndOption) {
+  const CommandResult help = Placedb("--help");
+  EXPECT_EQ(help.code, 0);
+  for (const char* sub : {"build", "query", "eval", "info", "bench"}) {
+    EXPECT_TRUE(Contains(help.output, sub)) << sub;
+  }
+  const CommandResult build_help = Placedb("build --help");
+  EXPECT_EQ(build_help.code, 0);
+  for (const char* flag : {"--images", "--tum", "--first", "--last", "--out", "--features",
+                           "--crop", "--resize", "--threads", "--quiet", "--strict",
+                           "--crop-percentile", "--orb-max-features", "--surf-hessian"}) {
+    EXPECT_TRUE(Contains(build_help.output, flag)) << flag;
+  }
+  // Defaults come from the options structs.
+  EXPECT_TRUE(Contains(build_help.output, "85")) << build_help.output;
+  const CommandResult none = Placedb("");
+  EXPECT_NE(none.code, 0);
+}
+
+TEST_F(CliTest, BuildQueryEvalInfo) {
+  const std::string db = Path("db");
+  const CommandResult build = Placedb("build --images " + kImages + " --first 1 --last 40 --crop chroma --out " +
+                            db + " --quiet --json " + Path("build.json"));
+  ASSERT_EQ(build.code, 0) << build.output;
+  EXPECT_TRUE(Contains(build.output, "40 of 40 frames")) << build.output;
+  // No progress bar when not a terminal.
+  EXPECT_FALSE(Contains(build.output, "\r"));
+
+  const CommandResult info = Placedb("info --db " + db);
+  EXPECT_EQ(info.code, 0);
+  EXPECT_TRUE(Contains(info.output, "keyframes       40")) << info.output;
+  EXPECT_TRUE(Contains(info.output, "chroma"));
+
+  const CommandResult query = Placedb("query --db " + db + " --image " + kImages + "/042.jpg --top-k 3 --json " +
+                            Path("q.json"));
+  ASSERT_EQ(query.code, 0) << query.output;
+  const auto q = nlohmann::json::parse(std::ifstream(Path("q.json")));
+  ASSERT_FALSE(q["best"].is_null());
+  const int best = q["best"]["keyframe_id"];
+  EXPECT_GE(best, 1);  // 42 revisits images 1-4
+  EXPECT_LE(best, 4);
+  EXPECT_EQ(q["ranked"].size(), 3u);
+
+  const CommandResult eval = Placedb("eval --db " + db + " --images " + kImages +
+                           " --first 41 --last 84 --truth " + kTruth + " --queries 20 --seed 3 --quiet --json " +
+                           Path("e.json"));
+  ASSERT_EQ(eval.code, 0) << eval.output;
+  const auto e = nlohmann::json::parse(std::ifstream(Path("e.json")));
+  EXPECT_EQ(e["num_queries"], 20);
+  EXPECT_GE(e["recall_at_1"].get<double>(), 0.8);
+  EXPECT_TRUE(e["latency_ms"].contains("p99"));
+  EXPECT_GT(e["database_bytes"]["features"].get<long>(), 0);
+  EXPECT_GT(e["reduction_vs_full"].get<double>(), 0.3);
+  EXPECT_TRUE(Contains(eval.output, "recall@1"));
+}
+
+TEST_F(CliTest, UnreadableImageIsSkippedAndCountedOrFatalWithStrict) {
+  const fs::path images = Path("images");
+  fs::create_directories(images);
+  for (const char* name : {"001.jpg", "002.jpg", "003.jpg"}) {
+    fs::copy_file(kImages + "/" + name, images / name);
+  }
+  std::ofstream(images / "004.jpg") << "this is not a jpeg";
+  const CommandResult skip = Placedb("build --images " + images.string() + " --out " + Path("db") + " --quiet");
+  ASSERT_EQ(skip.code, 0) << skip.output;
+  EXPECT_TRUE(Contains(skip.output, "3 of 4 frames (1 skipped")) << skip.output;
+  EXPECT_TRUE(Contains(skip.output, "004.jpg")) << skip.output;
+
+  const CommandResult strict = Placedb("build --images " + images.string() + " --out " + Path("db2") +
+                             " --quiet --strict");
+  EXPECT_EQ(strict.code, 1);
+  EXPECT_TRUE(Contains(strict.output, "placedb: error:")) << strict.output;
+  EXPECT_TRUE(Contains(strict.output, "004.jpg")) << strict.output;
+  EXPECT_FALSE(fs::exists(Path("db2")));
+}
+
+TEST_F(CliTest, ClearErrors) {
+  const std::string db = Path("db");
+  ASSERT_EQ(Placedb("build --images " + kImages + " --last 3 --out " + db + " --quiet").code, 0);
+  // Building over an existing database needs --overwrite.
+  const CommandResult again = Placedb("build --images " + kImages + " --last 3 --out " + db + " --quiet");
+  EXPECT_EQ(again.code, 1);
+  EXPECT_TRUE(Contains(again.output, "--overwrite")) << again.output;
+  // Asking for other features than the database holds names both.
+  const CommandResult wrong = Placedb("query --db " + db + " --image " + kImages + "/001.jpg --features surf");
+  EXPECT_EQ(wrong.code, 1);
+  EXPECT_TRUE(Contains(wrong.output, "orb")) << wrong.output;
+  EXPECT_TRUE(Contains(wrong.output, "surf")) << wrong.output;
+  // Missing database, missing image, bad flag values.
+  const CommandResult missing = Placedb("info --db " + Path("nope"));
+  EXPECT_EQ(missing.code, 1);
+  EXPECT_TRUE(Contains(missing.output, "no database")) << missing.output;
+  const CommandResult no_image = Placedb("query --db " + db + " --image " + Path("none.png"));
+  EXPECT_EQ(no_image.code, 1);
+  EXPECT_TRUE(Contains(no_image.output, "cannot read query image")) << no_image.output;
+  const CommandResult bad_resize = Placedb("build --images " + kImages + " --out " + Path("x") + " --resize 3");
+  EXPECT_NE(bad_resize.code, 0);
+  EXPECT_TRUE(Contains(bad_resize.output, "resize")) << bad_resize.output;
+  const CommandResult no_truth = Placedb("eval --db " + db + " --images " + kImages + " --first 41");
+  EXPECT_EQ(no_truth.code, 1);
+  EXPECT_TRUE(Contains(no_truth.output, "--truth")) << no_truth.output;
+}
+
+TEST_F(CliTest, TinyImagesGiveZeroFeaturesWithoutError) {
+  const fs::path images = Path("tiny");
+  fs::create_directories(images);
+  // 8x8 and 1x1 PNGs (written by hand-made bytes is overkill: use the P6 PPM
+  // format, which OpenCV reads).
+  for (const int side : {1, 8}) {
+    std::ofstream ppm(images / ("img" + std::to_string(side) + ".ppm"), std::ios::binary);
+    ppm << "P6\n" << side << " " << side << "\n255\n";
+    for (int i = 0; i < side * side; ++i) ppm.put(static_cast<char>(i * 37)).put('a').put('z');
+  }
+  const CommandResult build = Placedb("build --images " + images.string() + " --out " + Path("db") +
+                            " --crop chroma --quiet");
+  ASSERT_EQ(build.code, 0) << build.output;
+  EXPECT_TRUE(Contains(build.output, "2 of 2 frames")) << build.output;
+  EXPECT_TRUE(Contains(build.output, "features      0")) << build.output;
+  // Querying it: nothing can match, and it says so.
+  const CommandResult query = Placedb("query --db " + Path("db") + " --image " + kImages + "/001.jpg");
+  EXPECT_EQ(query.code, 0) << query.output;
+  EXPECT_TRUE(Contains(query.output, "no match")) << query.output;
+}
+
+TEST_F(CliTest, BenchComparesWithBfMatcher) {
+  const std::string db = Path("db");
+  ASSERT_EQ(Placedb("build --images " + kImages + " --last 10 --out " + db + " --quiet").code, 0);
+  const CommandResult bench = Placedb("bench --db " + db + " --images " + kImages +
+                            " --first 41 --last 50 --queries 5 --repeat 1 --json " + Path("b.json"));
+  ASSERT_EQ(bench.code, 0) << bench.output;
+  const auto b = nlohmann::json::parse(std::ifstream(Path("b.json")));
+  EXPECT_EQ(b["num_queries"], 5);
+  EXPECT_EQ(b["rankings_that_differ"], 0);
+  EXPECT_GT(b["bfmatcher_ms_per_query"].get<double>(), 0.0);
+  EXPECT_GT(b["placedb_ms_per_query"].get<double>(), 0.0);
+}
+
+}  // namespace
