@@ -14,6 +14,7 @@ PACKAGES=(
   zlib1g-dev             # CRC-32 of the database files
   libgtest-dev libgmock-dev
   libbenchmark-dev       # Google Benchmark
+  python3                # demo and benchmark tables
 )
 
 missing=()

@@ -6,7 +6,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <stdexcept>
 
-#include "placedb/dataset/test_util.h"
+#include "placedb/util/testing.h"
 
 namespace placedb {
 namespace {

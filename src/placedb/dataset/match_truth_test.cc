@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <stdexcept>
 
-#include "placedb/dataset/test_util.h"
+#include "placedb/util/testing.h"
 
 namespace placedb {
 namespace {

@@ -9,7 +9,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "placedb/dataset/test_util.h"
+#include "placedb/util/testing.h"
 
 namespace placedb {
 namespace {

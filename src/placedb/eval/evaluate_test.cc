@@ -12,6 +12,7 @@
 #include "placedb/dataset/tum.h"
 #include "placedb/eval/baseline.h"
 #include "placedb/index/builder.h"
+#include "placedb/util/testing.h"
 
 namespace placedb {
 namespace {
@@ -19,19 +20,10 @@ namespace fs = std::filesystem;
 
 const std::string kRtabmap = PLACEDB_DATA_DIR "/rtabmap_loop";
 
-class TempDir {
+// A scratch directory; db() is where a test's database goes.
+class TempDir : public testing_util::TempDir {
  public:
-  TempDir() {
-    path_ = fs::temp_directory_path() /
-            ("placedb_eval_" + std::to_string(::getpid()) + "_" + std::to_string(counter_++));
-    fs::remove_all(path_);
-  }
-  ~TempDir() { fs::remove_all(path_); }
-  std::string db() const { return (path_ / "db").string(); }
-
- private:
-  fs::path path_;
-  static inline int counter_ = 0;
+  std::string db() const { return Path("db"); }
 };
 
 EvalReport EvaluateRtabmapSplit(const BuildOptions& options, const std::string& db_dir) {
@@ -91,6 +83,19 @@ TEST(EvaluateTest, RtabmapSplitCroppedRecallAndSavings) {
   EXPECT_GE(r.recall_at_1, 0.90);
   // The point of cropping: far less image data.
   EXPECT_GT(r.reduction_vs_full, 0.4);
+}
+
+TEST(EvaluateTest, RtabmapSplitSurfRecall) {
+  TempDir tmp;
+  BuildOptions options = Defaults();
+  options.features.type = FeatureType::kSurf;
+  const EvalReport r = EvaluateRtabmapSplit(options, tmp.db());
+  std::printf("surf uncropped: recall@1 %.3f recall@5 %.3f (%d/%d), %.2f ms/query\n",
+              r.recall_at_1, r.recall_at_5, r.num_correct, r.num_queries, r.latency_ms.mean);
+  const Database db = Database::Load(tmp.db());
+  EXPECT_EQ(db.feature_type(), FeatureType::kSurf);
+  EXPECT_EQ(db.descriptor_bytes(), 64 * 4);
+  EXPECT_GE(r.recall_at_1, 0.90);
 }
 
 TEST(EvaluateTest, SameSeedSameQueries) {
@@ -158,9 +163,7 @@ TEST(EvaluateTest, BaselineRanksLikeOurs) {
   const auto extractor = FeatureExtractor::Create(ExtractorOptionsFromManifest(db.info()));
   QueryOptions options;
   for (int id : {41, 45, 50}) {
-    char path[256];
-    std::snprintf(path, sizeof(path), "%s/images/%03d.jpg", kRtabmap.c_str(), id);
-    const FeatureSet q = extractor->Extract(cv::imread(path));
+    const FeatureSet q = extractor->Extract(cv::imread(testing_util::RtabmapImage(id)));
     const auto ours = QueryFeatures(db, q, options).ranked;
     const auto base = BfMatcherQuery(db, q, options);
     ASSERT_FALSE(ours.empty());

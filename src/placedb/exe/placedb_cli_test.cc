@@ -11,6 +11,9 @@
 
 #include <nlohmann/json.hpp>
 
+#include "placedb/index/builder.h"
+#include "placedb/util/testing.h"
+
 namespace {
 namespace fs = std::filesystem;
 
@@ -42,16 +45,9 @@ bool Contains(const std::string& text, const std::string& part) {
 
 class CliTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("placedb_cli_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
+  std::string Path(const std::string& name) const { return tmp_.Path(name); }
 
-  fs::path dir_;
+  placedb::testing_util::TempDir tmp_;
 };
 
 TEST_F(CliTest, HelpListsEverySubcommandAndOption) {
@@ -176,6 +172,21 @@ TEST_F(CliTest, TinyImagesGiveZeroFeaturesWithoutError) {
   const CommandResult query = Placedb("query --db " + Path("db") + " --image " + kImages + "/001.jpg");
   EXPECT_EQ(query.code, 0) << query.output;
   EXPECT_TRUE(Contains(query.output, "no match")) << query.output;
+}
+
+TEST_F(CliTest, QueryAgainstAnEmptyDatabaseSaysSo) {
+  // Builds refuse to produce an empty database; one made through the library
+  // is still handled.
+  placedb::Database empty(placedb::FeatureType::kOrb, 32);
+  empty.info()["settings"] = placedb::BuildSettingsToJson(placedb::BuildOptions());
+  fs::create_directories(Path("empty"));
+  empty.Save(Path("empty"));
+  const CommandResult query = Placedb("query --db " + Path("empty") + " --image " + kImages + "/001.jpg");
+  EXPECT_EQ(query.code, 2);
+  EXPECT_TRUE(Contains(query.output, "empty")) << query.output;
+  const CommandResult info = Placedb("info --db " + Path("empty"));
+  EXPECT_EQ(info.code, 0);
+  EXPECT_TRUE(Contains(info.output, "keyframes       0")) << info.output;
 }
 
 TEST_F(CliTest, BenchComparesWithBfMatcher) {

@@ -3,6 +3,7 @@
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "placedb/image/chromaticity.h"
 #include "placedb/util/check.h"
 
 namespace placedb {
@@ -21,21 +22,6 @@ std::string ExtractorOptions::Check() const {
   if (type == FeatureType::kOrb) return orb.Check();
   if (type == FeatureType::kSurf) return surf.Check();
   return "unknown feature type";
-}
-
-cv::Mat ToGray(const cv::Mat& image) {
-  PLACEDB_CHECK(image.empty() || image.depth() == CV_8U, "expected an 8-bit image, got depth ",
-                image.depth());
-  if (image.empty() || image.channels() == 1) return image;
-  cv::Mat gray;
-  if (image.channels() == 3) {
-    cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
-  } else if (image.channels() == 4) {
-    cv::cvtColor(image, gray, cv::COLOR_BGRA2GRAY);
-  } else {
-    PLACEDB_THROW_INVALID("unsupported number of channels: ", image.channels());
-  }
-  return gray;
 }
 
 namespace {

@@ -51,7 +51,4 @@ class FeatureExtractor {
   static std::unique_ptr<FeatureExtractor> Create(const ExtractorOptions& options);
 };
 
-// Converts an 8-bit image with 1, 3 or 4 channels to gray (no copy for gray).
-cv::Mat ToGray(const cv::Mat& image);
-
 }  // namespace placedb

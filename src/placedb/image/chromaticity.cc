@@ -1,5 +1,7 @@
 #include "placedb/image/chromaticity.h"
 
+#include <opencv2/imgproc.hpp>
+
 #include "placedb/util/check.h"
 
 namespace placedb {
@@ -40,6 +42,21 @@ std::array<cv::Mat, 3> RgChromaticity(const cv::Mat& bgr) {
     }
   }
   return planes;
+}
+
+cv::Mat ToGray(const cv::Mat& image) {
+  PLACEDB_CHECK(image.empty() || image.depth() == CV_8U, "expected an 8-bit image, got depth ",
+                image.depth());
+  if (image.empty() || image.channels() == 1) return image;
+  cv::Mat gray;
+  if (image.channels() == 3) {
+    cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
+  } else if (image.channels() == 4) {
+    cv::cvtColor(image, gray, cv::COLOR_BGRA2GRAY);
+  } else {
+    PLACEDB_THROW_INVALID("unsupported number of channels: ", image.channels());
+  }
+  return gray;
 }
 
 }  // namespace placedb

@@ -16,4 +16,9 @@ const char* ChromaChannelName(ChromaChannel channel);
 // Throws std::invalid_argument for any other image type.
 std::array<cv::Mat, 3> RgChromaticity(const cv::Mat& bgr);
 
+// Converts an 8-bit image with 1, 3 (BGR) or 4 (BGRA) channels to gray; a
+// gray image is returned as is (no copy). Throws std::invalid_argument for
+// other depths or channel counts.
+cv::Mat ToGray(const cv::Mat& image);
+
 }  // namespace placedb

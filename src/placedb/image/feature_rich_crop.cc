@@ -23,16 +23,8 @@ std::string CropOptions::Check() const {
 
 int CountFastKeypoints(const cv::Mat& image, int threshold, bool nonmax) {
   if (image.empty()) return 0;
-  cv::Mat gray;
-  if (image.channels() == 3) {
-    cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
-  } else if (image.channels() == 4) {
-    cv::cvtColor(image, gray, cv::COLOR_BGRA2GRAY);
-  } else {
-    gray = image;
-  }
   std::vector<cv::KeyPoint> keypoints;
-  cv::FAST(gray, keypoints, threshold, nonmax);
+  cv::FAST(ToGray(image), keypoints, threshold, nonmax);
   return static_cast<int>(keypoints.size());
 }
 

@@ -2,6 +2,7 @@
 
 #include <cstring>
 #include <filesystem>
+#include <optional>
 #include <unordered_set>
 
 #include "placedb/util/check.h"
@@ -302,10 +303,26 @@ Database Database::Load(const std::string& dir) {
   } catch (const nlohmann::json::exception& e) {
     PLACEDB_THROW_RUNTIME(manifest_path, ": not valid JSON (", e.what(), ")");
   }
-  if (!manifest.is_object() || manifest.value("format", "") != "placedb-database") {
+  // Fields of the wrong JSON type would throw nlohmann's type_error, which is
+  // no std::runtime_error: read them all here and report a malformed manifest.
+  std::string format, manifest_type;
+  uint32_t version = 0;
+  std::optional<uint64_t> manifest_keyframes;
+  try {
+    if (manifest.is_object()) {
+      format = manifest.value("format", "");
+      version = manifest.value("format_version", 0u);
+      manifest_type = manifest.value("feature_type", "");
+      if (manifest.contains("counts")) {
+        manifest_keyframes = manifest["counts"].value("keyframes", uint64_t{0});
+      }
+    }
+  } catch (const nlohmann::json::exception& e) {
+    PLACEDB_THROW_RUNTIME(manifest_path, ": malformed manifest (", e.what(), ")");
+  }
+  if (!manifest.is_object() || format != "placedb-database") {
     PLACEDB_THROW_RUNTIME(manifest_path, ": not a placedb database manifest");
   }
-  const uint32_t version = manifest.value("format_version", 0u);
   if (version != kDatabaseFormatVersion) {
     PLACEDB_THROW_RUNTIME(dir, ": database format version ", version,
                           " is not supported (this placedb reads version ",
@@ -317,14 +334,12 @@ Database Database::Load(const std::string& dir) {
   }
   Database db;
   db.DecodeKeyframes(ReadFileToString(bin_path), bin_path);
-  const std::string manifest_type = manifest.value("feature_type", "");
   if (manifest_type != FeatureTypeName(db.feature_type_)) {
     PLACEDB_THROW_RUNTIME(dir, ": manifest says '", manifest_type, "' features but ",
                           kKeyframesFile, " holds '", FeatureTypeName(db.feature_type_),
                           "' features (corrupted database)");
   }
-  if (manifest.contains("counts") &&
-      manifest["counts"].value("keyframes", uint64_t{0}) != db.keyframes_.size()) {
+  if (manifest_keyframes && *manifest_keyframes != db.keyframes_.size()) {
     PLACEDB_THROW_RUNTIME(dir, ": manifest and ", kKeyframesFile,
                           " disagree on the number of keyframes (corrupted database)");
   }

@@ -14,52 +14,14 @@
 
 #include "placedb/feature/extractor.h"
 #include "placedb/util/file_io.h"
+#include "placedb/util/testing.h"
 
 namespace placedb {
 namespace {
+using testing_util::TempDir;
+using testing_util::ThrowsWith;
 namespace fs = std::filesystem;
-
-// A fresh directory under the system temp dir, removed with its contents.
-class TempDir {
- public:
-  TempDir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ = fs::temp_directory_path() / ("placedb_index_db_" + std::to_string(::getpid()) + "_" +
-                                         info->test_suite_name() + "_" + info->name());
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  std::string Path(const std::string& relative = "") const { return (path_ / relative).string(); }
-
- private:
-  fs::path path_;
-};
-
-template <typename Exception, typename Fn>
-::testing::AssertionResult ThrowsWith(Fn&& fn, const std::string& phrase) {
-  try {
-    fn();
-  } catch (const Exception& e) {
-    const std::string message = e.what();
-    if (message.find(phrase) == std::string::npos) {
-      return ::testing::AssertionFailure() << "message '" << message << "' lacks '" << phrase << "'";
-    }
-    return ::testing::AssertionSuccess() << message;
-  } catch (const std::exception& e) {
-    return ::testing::AssertionFailure() << "wrong exception type: " << e.what();
-  }
-  return ::testing::AssertionFailure() << "nothing thrown";
-}
-
-std::string ImagePath(int n) {
-  char name[64];
-  std::snprintf(name, sizeof(name), PLACEDB_DATA_DIR "/rtabmap_loop/images/%03d.jpg", n);
-  return name;
-}
+using testing_util::RtabmapImage;
 
 void WriteBytes(const std::string& path, const std::string& bytes) {
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
@@ -75,7 +37,7 @@ Database MakeDatabase(const ExtractorOptions& options, int n, bool with_poses) {
   const int bytes = options.type == FeatureType::kOrb ? 32 : (options.surf.extended ? 128 : 64) * 4;
   Database db(options.type, bytes);
   for (int i = 1; i <= n; ++i) {
-    const cv::Mat image = cv::imread(ImagePath(i));
+    const cv::Mat image = cv::imread(RtabmapImage(i));
     EXPECT_FALSE(image.empty());
     Keyframe k;
     k.id = i * 10;  // ids need not be positions
@@ -87,7 +49,7 @@ Database MakeDatabase(const ExtractorOptions& options, int n, bool with_poses) {
     cv::resize(image(k.crop), stored, cv::Size(160, 120), 0, 0, cv::INTER_AREA);
     k.stored_size = stored.size();
     k.scale = 0.5;
-    k.source = ImagePath(i);
+    k.source = RtabmapImage(i);
     k.image_file = i == 2 ? "" : "images/" + std::to_string(i) + ".png";  // one without image
     if (with_poses && i % 2 == 1) {
       Pose pose;
@@ -371,10 +333,24 @@ TEST_F(DatabaseFileTest, NotADirectory) {
 }
 
 TEST_F(DatabaseFileTest, ManifestNotJson) {
+  fs::copy_file(Dir() + "/manifest.json", Dir() + "/manifest.json.bak");
   WriteBytes(Dir() + "/manifest.json", "{ not json");
   EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "not valid JSON"));
   WriteBytes(Dir() + "/manifest.json", "{\"format\": \"something-else\"}");
   EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "not a placedb database manifest"));
+  WriteBytes(Dir() + "/manifest.json", "[1, 2, 3]");
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "not a placedb database manifest"));
+  // Fields of the wrong JSON type: a runtime_error, not nlohmann's type_error.
+  const nlohmann::json good = nlohmann::json::parse(ReadFileToString(Dir() + "/manifest.json.bak"));
+  for (const char* field : {"format", "format_version", "feature_type", "counts"}) {
+    nlohmann::json bad = good;
+    bad[field] = field == std::string("format") ? nlohmann::json(7) : nlohmann::json("x");
+    if (field == std::string("feature_type")) bad[field] = 3;
+    WriteBytes(Dir() + "/manifest.json", bad.dump());
+    EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "malformed manifest")) << field;
+  }
+  WriteBytes(Dir() + "/manifest.json", good.dump());
+  EXPECT_EQ(Database::Load(Dir()).size(), 3u);
 }
 
 TEST(DatabaseTest, AddingSurfFeaturesToOrbDatabaseThrows) {
@@ -383,7 +359,7 @@ TEST(DatabaseTest, AddingSurfFeaturesToOrbDatabaseThrows) {
   ExtractorOptions surf;
   surf.type = FeatureType::kSurf;
   surf.surf.max_features = 50;
-  const FeatureSet features = FeatureExtractor::Create(surf)->Extract(cv::imread(ImagePath(5)));
+  const FeatureSet features = FeatureExtractor::Create(surf)->Extract(cv::imread(RtabmapImage(5)));
   ASSERT_FALSE(features.empty());
   Keyframe k;
   k.id = 99;
@@ -392,7 +368,7 @@ TEST(DatabaseTest, AddingSurfFeaturesToOrbDatabaseThrows) {
   EXPECT_EQ(db.size(), 1u);  // unchanged
   // A SURF database refuses ORB features the same way.
   Database surf_db(FeatureType::kSurf, 256);
-  const FeatureSet orb = FeatureExtractor::Create(ExtractorOptions())->Extract(cv::imread(ImagePath(5)));
+  const FeatureSet orb = FeatureExtractor::Create(ExtractorOptions())->Extract(cv::imread(RtabmapImage(5)));
   EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { surf_db.AddKeyframe(k, orb); },
                                                 "cannot add orb features to a database of surf"));
   EXPECT_TRUE(surf_db.empty());
@@ -401,7 +377,7 @@ TEST(DatabaseTest, AddingSurfFeaturesToOrbDatabaseThrows) {
 TEST(DatabaseTest, DuplicateKeyframeIdThrows) {
   Database db = MakeDatabase(ExtractorOptions(), 2, false);  // ids 10, 20
   const size_t features = db.num_features();
-  const FeatureSet set = FeatureExtractor::Create(ExtractorOptions())->Extract(cv::imread(ImagePath(7)));
+  const FeatureSet set = FeatureExtractor::Create(ExtractorOptions())->Extract(cv::imread(RtabmapImage(7)));
   Keyframe k;
   k.id = 20;
   EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { db.AddKeyframe(k, set); },

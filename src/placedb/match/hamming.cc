@@ -18,15 +18,7 @@ struct ByteTable {
 };
 const ByteTable kTable;
 
-inline void Update(TwoNearest& out, uint32_t d, int index) {
-  if (d < out.best) {
-    out.second = out.best;
-    out.best = d;
-    out.best_index = index;
-  } else if (d < out.second) {
-    out.second = d;
-  }
-}
+inline void Update(TwoNearest& out, uint32_t d, int index) { out.Update(d, index); }
 
 #if PLACEDB_X86
 __attribute__((target("popcnt"))) uint32_t HammingPopcnt(const uint8_t* a, const uint8_t* b,

@@ -5,6 +5,8 @@
 
 #include <cstdint>
 
+#include "placedb/match/two_nearest.h"
+
 namespace placedb {
 
 // Distance between two `bytes`-long bit strings, byte table lookup.
@@ -18,11 +20,7 @@ uint32_t Hamming(const uint8_t* a, const uint8_t* b, int bytes);
 // back to back (`bytes` each) at `db`, and the index of the smallest.
 // Ties keep the lower index. With count == 0 both distances are UINT32_MAX
 // and best_index is -1.
-struct TwoNearest {
-  uint32_t best = UINT32_MAX;
-  uint32_t second = UINT32_MAX;
-  int best_index = -1;
-};
+using TwoNearest = TwoNearestOf<uint32_t>;
 TwoNearest TwoNearestHammingReference(const uint8_t* query, const uint8_t* db, int count,
                                       int bytes);
 TwoNearest TwoNearestHamming(const uint8_t* query, const uint8_t* db, int count, int bytes);

@@ -1,5 +1,7 @@
 #include "placedb/match/l2_distance.h"
 
+#include <limits>
+
 #if defined(__x86_64__) || defined(__i386__)
 #include <immintrin.h>
 #define PLACEDB_L2_X86 1
@@ -67,6 +69,46 @@ float L2SquaredSse2(const float* a, const float* b, int n) {
 
 #endif  // PLACEDB_L2_X86
 
+inline void UpdateTwo(TwoNearestL2Result& out, float d, int index) { out.Update(d, index); }
+
+TwoNearestL2Result EmptyResult() { return TwoNearestL2Result(); }
+
+#if defined(PLACEDB_L2_X86)
+
+__attribute__((target("avx2,fma"))) inline float HorizontalSum(__m256 v) {
+  __m128 s = _mm_add_ps(_mm256_castps256_ps128(v), _mm256_extractf128_ps(v, 1));
+  s = _mm_add_ps(s, _mm_movehl_ps(s, s));
+  s = _mm_add_ss(s, _mm_shuffle_ps(s, s, 1));
+  return _mm_cvtss_f32(s);
+}
+
+// Query of kBlocks x 8 floats kept in registers; each database row is read
+// once, straight from memory.
+template <int kBlocks>
+__attribute__((target("avx2,fma"))) TwoNearestL2Result TwoNearestAvx2Fixed(
+    const float* query, const float* db, int count, const int8_t* signs, int8_t query_sign) {
+  constexpr int kDims = kBlocks * 8;
+  __m256 q[kBlocks];
+  for (int b = 0; b < kBlocks; ++b) q[b] = _mm256_loadu_ps(query + 8 * b);
+  TwoNearestL2Result out = EmptyResult();
+  for (int j = 0; j < count; ++j) {
+    if (signs != nullptr && signs[j] != query_sign) continue;
+    const float* row = db + static_cast<size_t>(j) * kDims;
+    __m256 acc0 = _mm256_setzero_ps();
+    __m256 acc1 = _mm256_setzero_ps();
+    for (int b = 0; b < kBlocks; b += 2) {
+      const __m256 d0 = _mm256_sub_ps(q[b], _mm256_loadu_ps(row + 8 * b));
+      const __m256 d1 = _mm256_sub_ps(q[b + 1], _mm256_loadu_ps(row + 8 * b + 8));
+      acc0 = _mm256_fmadd_ps(d0, d0, acc0);
+      acc1 = _mm256_fmadd_ps(d1, d1, acc1);
+    }
+    UpdateTwo(out, HorizontalSum(_mm256_add_ps(acc0, acc1)), j);
+  }
+  return out;
+}
+
+#endif  // PLACEDB_L2_X86
+
 struct Dispatch {
   L2Kernel kernel = L2SquaredReference;
   const char* name = "plain";
@@ -101,6 +143,33 @@ float L2SquaredReference(const float* a, const float* b, int n) {
 }
 
 float L2Squared(const float* a, const float* b, int n) { return GetDispatch().kernel(a, b, n); }
+
+TwoNearestL2Result TwoNearestL2Reference(const float* query, const float* db, int count, int dims,
+                                         const int8_t* signs, int8_t query_sign) {
+  TwoNearestL2Result out = EmptyResult();
+  for (int j = 0; j < count; ++j) {
+    if (signs != nullptr && signs[j] != query_sign) continue;
+    UpdateTwo(out, L2SquaredReference(query, db + static_cast<size_t>(j) * dims, dims), j);
+  }
+  return out;
+}
+
+TwoNearestL2Result TwoNearestL2(const float* query, const float* db, int count, int dims,
+                                const int8_t* signs, int8_t query_sign) {
+#if defined(PLACEDB_L2_X86)
+  if (GetDispatch().kernel == L2SquaredAvx2) {
+    if (dims == 64) return TwoNearestAvx2Fixed<8>(query, db, count, signs, query_sign);
+    if (dims == 128) return TwoNearestAvx2Fixed<16>(query, db, count, signs, query_sign);
+  }
+#endif
+  const L2Kernel kernel = GetDispatch().kernel;
+  TwoNearestL2Result out = EmptyResult();
+  for (int j = 0; j < count; ++j) {
+    if (signs != nullptr && signs[j] != query_sign) continue;
+    UpdateTwo(out, kernel(query, db + static_cast<size_t>(j) * dims, dims), j);
+  }
+  return out;
+}
 
 const char* L2SquaredKernelName() { return GetDispatch().name; }
 

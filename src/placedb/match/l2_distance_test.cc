@@ -43,5 +43,38 @@ TEST(L2DistanceTest, IdenticalVectorsGiveZeroForAllSizes) {
   for (int n = 0; n <= 300; ++n) EXPECT_EQ(L2Squared(a.data(), a.data(), n), 0.f) << n;
 }
 
+TEST(L2DistanceTest, TwoNearestEqualsReference) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> dist(-1.f, 1.f);
+  for (const int dims : {64, 128, 7, 32}) {
+    for (const int count : {0, 1, 2, 5, 300}) {
+      std::vector<float> db(static_cast<size_t>(count) * dims), query(dims);
+      for (float& v : db) v = dist(rng);
+      for (float& v : query) v = dist(rng);
+      std::vector<int8_t> signs(count);
+      for (auto& s : signs) s = (rng() & 1) ? 1 : -1;
+      for (const bool use_signs : {false, true}) {
+        const int8_t* sp = use_signs ? signs.data() : nullptr;
+        for (const int8_t qs : {int8_t{1}, int8_t{-1}}) {
+          const auto ref = TwoNearestL2Reference(query.data(), db.data(), count, dims, sp, qs);
+          const auto got = TwoNearestL2(query.data(), db.data(), count, dims, sp, qs);
+          ASSERT_EQ(got.best_index, ref.best_index) << dims << " " << count;
+          if (ref.best_index < 0) {
+            EXPECT_TRUE(std::isinf(got.best));
+            continue;
+          }
+          EXPECT_NEAR(got.best, ref.best, 1e-4f * std::max(1.f, ref.best));
+          if (std::isinf(ref.second)) {
+            EXPECT_TRUE(std::isinf(got.second));
+          } else {
+            EXPECT_NEAR(got.second, ref.second, 1e-4f * std::max(1.f, ref.second));
+          }
+          if (use_signs) EXPECT_EQ(signs[ref.best_index], qs);
+        }
+      }
+    }
+  }
+}
+
 }  // namespace
 }  // namespace placedb

@@ -65,20 +65,12 @@ int CountSurf(const DescriptorBlock& query, const DescriptorBlock& db, double ra
   int good = 0;
   for (int i = 0; i < query.rows; ++i) {
     const float* q = q_all + static_cast<size_t>(i) * dims;
-    float best = std::numeric_limits<float>::infinity();
-    float second = best;
-    int best_index = -1;
-    for (int j = 0; j < db.rows; ++j) {
-      if (signs && query.laplacian[i] != db.laplacian[j]) continue;
-      const float d = L2Squared(q, d_all + static_cast<size_t>(j) * dims, dims);
-      if (d < best) {
-        second = best;
-        best = d;
-        best_index = j;
-      } else if (d < second) {
-        second = d;
-      }
-    }
+    const TwoNearestL2Result nn = TwoNearestL2(q, d_all, db.rows, dims,
+                                               signs ? db.laplacian : nullptr,
+                                               signs ? query.laplacian[i] : int8_t{0});
+    const float best = nn.best;
+    const float second = nn.second;
+    const int best_index = nn.best_index;
     if (best_index < 0 || best > limit) continue;
     if (std::isinf(second) || best < ratio2 * second) {
       ++good;

@@ -1,14 +1,17 @@
-// Helpers for this module's tests only: a scratch directory and a check that a
-// call throws a given exception type whose message contains given parts.
+// Helpers for tests only (header-only, GoogleTest): a scratch directory and a
+// check that a call throws a given exception type whose message contains
+// given parts.
 #pragma once
 
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <initializer_list>
 #include <string>
+#include <utility>
 
 namespace placedb {
 namespace testing_util {
@@ -19,8 +22,8 @@ class TempDir {
   TempDir() {
     const ::testing::TestInfo* info = ::testing::UnitTest::GetInstance()->current_test_info();
     path_ = std::filesystem::temp_directory_path() /
-            ("placedb_dataset_" + std::to_string(getpid()) + "_" + info->test_suite_name() + "_" +
-             info->name());
+            ("placedb_test_" + std::to_string(getpid()) + "_" + info->test_suite_name() + "_" +
+             info->name() + "_" + std::to_string(counter_++));
     std::filesystem::remove_all(path_);
     std::filesystem::create_directories(path_);
   }
@@ -44,6 +47,7 @@ class TempDir {
 
  private:
   std::filesystem::path path_;
+  static inline int counter_ = 0;  // several directories in one test
 };
 
 // Runs `fn`; succeeds when it throws `Exception` whose what() contains every
@@ -65,6 +69,21 @@ template <typename Exception, typename Fn>
     return ::testing::AssertionFailure() << "wrong exception type: " << e.what();
   }
   return ::testing::AssertionFailure() << "nothing thrown";
+}
+
+#ifdef PLACEDB_DATA_DIR
+// Path of image n (1..84) of the shipped RTAB-Map loop sequence.
+inline std::string RtabmapImage(int n) {
+  char name[32];
+  std::snprintf(name, sizeof(name), "/%03d.jpg", n);
+  return std::string(PLACEDB_DATA_DIR "/rtabmap_loop/images") + name;
+}
+#endif
+
+// The same with one phrase.
+template <typename Exception, typename Fn>
+::testing::AssertionResult ThrowsWith(Fn&& fn, const std::string& phrase) {
+  return ThrowsWith<Exception>(std::forward<Fn>(fn), {phrase});
 }
 
 }  // namespace testing_util
