@@ -97,33 +97,26 @@ ProcessedFrame ProcessFrame(const Frame& frame, const cv::Mat& image, const Buil
   return out;
 }
 
+// JSON forms of the options structs (field names = member names).
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(CropOptions, smooth_sigma, percentile, padding,
+                                   min_fast_keypoints, fast_threshold, fast_nonmax,
+                                   min_region_pixels)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(OrbOptions, max_features, scale_factor, num_levels,
+                                   edge_threshold, fast_threshold, patch_size)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(SurfOptions, hessian_threshold, num_octaves,
+                                   num_octave_layers, extended, upright, max_features)
+
 nlohmann::json BuildSettingsToJson(const BuildOptions& o) {
   nlohmann::json j;
   j["crop"] = CropModeName(o.crop);
-  j["crop_options"] = {{"smooth_sigma", o.crop_options.smooth_sigma},
-                       {"percentile", o.crop_options.percentile},
-                       {"padding", o.crop_options.padding},
-                       {"min_fast_keypoints", o.crop_options.min_fast_keypoints},
-                       {"fast_threshold", o.crop_options.fast_threshold},
-                       {"fast_nonmax", o.crop_options.fast_nonmax},
-                       {"min_region_pixels", o.crop_options.min_region_pixels}};
+  j["crop_options"] = o.crop_options;
   j["resize"] = o.resize;
   j["store_images"] = o.store_images;
   j["extract_in_context"] = o.extract_in_context;
   j["png_compression"] = o.png_compression;
   j["features"]["type"] = FeatureTypeName(o.features.type);
-  j["features"]["orb"] = {{"max_features", o.features.orb.max_features},
-                          {"scale_factor", o.features.orb.scale_factor},
-                          {"num_levels", o.features.orb.num_levels},
-                          {"edge_threshold", o.features.orb.edge_threshold},
-                          {"fast_threshold", o.features.orb.fast_threshold},
-                          {"patch_size", o.features.orb.patch_size}};
-  j["features"]["surf"] = {{"hessian_threshold", o.features.surf.hessian_threshold},
-                           {"num_octaves", o.features.surf.num_octaves},
-                           {"num_octave_layers", o.features.surf.num_octave_layers},
-                           {"extended", o.features.surf.extended},
-                           {"upright", o.features.surf.upright},
-                           {"max_features", o.features.surf.max_features}};
+  j["features"]["orb"] = o.features.orb;
+  j["features"]["surf"] = o.features.surf;
   return j;
 }
 
@@ -135,20 +128,8 @@ ExtractorOptions ExtractorOptionsFromManifest(const nlohmann::json& manifest) {
   const nlohmann::json& f = manifest["settings"]["features"];
   try {
     o.type = ParseFeatureType(f.at("type").get<std::string>());
-    const auto& orb = f.at("orb");
-    o.orb.max_features = orb.at("max_features");
-    o.orb.scale_factor = orb.at("scale_factor");
-    o.orb.num_levels = orb.at("num_levels");
-    o.orb.edge_threshold = orb.at("edge_threshold");
-    o.orb.fast_threshold = orb.at("fast_threshold");
-    o.orb.patch_size = orb.at("patch_size");
-    const auto& surf = f.at("surf");
-    o.surf.hessian_threshold = surf.at("hessian_threshold");
-    o.surf.num_octaves = surf.at("num_octaves");
-    o.surf.num_octave_layers = surf.at("num_octave_layers");
-    o.surf.extended = surf.at("extended");
-    o.surf.upright = surf.at("upright");
-    o.surf.max_features = surf.at("max_features");
+    o.orb = f.at("orb").get<OrbOptions>();
+    o.surf = f.at("surf").get<SurfOptions>();
   } catch (const nlohmann::json::exception& e) {
     PLACEDB_THROW_RUNTIME("the database manifest's feature settings are malformed: ", e.what());
   }
