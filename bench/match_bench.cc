@@ -4,11 +4,10 @@
 // and the L2 kernels for SURF.
 #include <benchmark/benchmark.h>
 
-#include <random>
-#include <vector>
-
 #include <opencv2/core.hpp>
 #include <opencv2/features2d.hpp>
+#include <random>
+#include <vector>
 
 #include "placedb/match/hamming.h"
 #include "placedb/match/l2_distance.h"

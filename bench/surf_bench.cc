@@ -3,12 +3,11 @@
 // Images: a 640x480 TUM frame and graf1 (800x640), read from PLACEDB_DATA_DIR.
 #include <benchmark/benchmark.h>
 
-#include <stdexcept>
-#include <string>
-
 #include <opencv2/core.hpp>
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <stdexcept>
+#include <string>
 
 #include "placedb/feature/surf/surf.h"
 

@@ -31,7 +31,8 @@ std::vector<ScoredKeyframe> BfMatcherQuery(const Database& db, const FeatureSet&
         ++good;
       }
     }
-    if (good >= options.min_matches) scored.push_back({db.keyframe(i).id, static_cast<double>(good)});
+    if (good >= options.min_matches)
+      scored.push_back({db.keyframe(i).id, static_cast<double>(good)});
   }
   return TopK(std::move(scored), options.top_k);
 }

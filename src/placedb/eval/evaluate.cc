@@ -1,12 +1,12 @@
 #include "placedb/eval/evaluate.h"
 
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <filesystem>
-#include <random>
-
-#include <fmt/format.h>
 #include <opencv2/imgcodecs.hpp>
-#include <spdlog/spdlog.h>
+#include <random>
 
 #include "placedb/util/check.h"
 #include "placedb/util/file_io.h"
@@ -115,7 +115,8 @@ EvalReport Evaluate(const Database& db, const std::string& db_dir,
   report.image_bytes = DirectorySize((fs::path(db_dir) / "images").string());
   report.feature_bytes = FileSize((fs::path(db_dir) / Database::kKeyframesFile).string());
   const nlohmann::json& info = db.info();
-  if (info.contains("bytes")) report.full_png_bytes = info["bytes"].value("full_frames_png", uint64_t{0});
+  if (info.contains("bytes"))
+    report.full_png_bytes = info["bytes"].value("full_frames_png", uint64_t{0});
   if (report.full_png_bytes > 0) {
     report.reduction_vs_full =
         1.0 - static_cast<double>(report.image_bytes) / static_cast<double>(report.full_png_bytes);
@@ -153,7 +154,8 @@ nlohmann::json EvalReportToJson(const EvalReport& r) {
     e["num_features"] = q.num_features;
     e["latency_ms"] = q.latency_ms;
     nlohmann::json ranked = nlohmann::json::array();
-    for (const auto& s : q.ranked) ranked.push_back({{"keyframe_id", s.keyframe_id}, {"score", s.score}});
+    for (const auto& s : q.ranked)
+      ranked.push_back({{"keyframe_id", s.keyframe_id}, {"score", s.score}});
     e["ranked"] = ranked;
     queries.push_back(e);
   }

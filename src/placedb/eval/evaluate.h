@@ -4,10 +4,9 @@
 #pragma once
 
 #include <cstdint>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "placedb/eval/ground_truth.h"
 #include "placedb/eval/metrics.h"
@@ -46,20 +45,20 @@ struct QueryRecord {
 };
 
 struct EvalReport {
-  int num_queries = 0;          // evaluated (readable, with ground truth)
-  int num_correct = 0;          // correct at rank 1
+  int num_queries = 0;  // evaluated (readable, with ground truth)
+  int num_correct = 0;  // correct at rank 1
   int num_correct_at_5 = 0;
-  int num_answerable = 0;       // queries with a true match in the database
+  int num_answerable = 0;  // queries with a true match in the database
   int num_unreadable = 0;
   double recall_at_1 = 0.0;
   double recall_at_5 = 0.0;
   LatencyStats latency_ms;
   LatencyStats match_ms;
-  uint64_t image_bytes = 0;     // stored PNGs
-  uint64_t feature_bytes = 0;   // keyframes.bin
-  uint64_t full_png_bytes = 0;  // every database frame stored whole as PNG
+  uint64_t image_bytes = 0;        // stored PNGs
+  uint64_t feature_bytes = 0;      // keyframes.bin
+  uint64_t full_png_bytes = 0;     // every database frame stored whole as PNG
   double reduction_vs_full = 0.0;  // 1 - image_bytes / full_png_bytes
-  std::string truth;            // how correctness was decided
+  std::string truth;               // how correctness was decided
   std::vector<QueryRecord> queries;
 };
 

@@ -4,7 +4,6 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
-
 #include <opencv2/imgcodecs.hpp>
 
 #include "placedb/dataset/image_folder.h"
@@ -90,8 +89,8 @@ TEST(EvaluateTest, RtabmapSplitSurfRecall) {
   BuildOptions options = Defaults();
   options.features.type = FeatureType::kSurf;
   const EvalReport r = EvaluateRtabmapSplit(options, tmp.db());
-  std::printf("surf uncropped: recall@1 %.3f recall@5 %.3f (%d/%d), %.2f ms/query\n",
-              r.recall_at_1, r.recall_at_5, r.num_correct, r.num_queries, r.latency_ms.mean);
+  std::printf("surf uncropped: recall@1 %.3f recall@5 %.3f (%d/%d), %.2f ms/query\n", r.recall_at_1,
+              r.recall_at_5, r.num_correct, r.num_queries, r.latency_ms.mean);
   const Database db = Database::Load(tmp.db());
   EXPECT_EQ(db.feature_type(), FeatureType::kSurf);
   EXPECT_EQ(db.descriptor_bytes(), 64 * 4);
@@ -151,7 +150,9 @@ TEST(EvaluateTest, TumPosesJudgeMatches) {
   EXPECT_TRUE(r2.queries[0].correct_at_1);
   EXPECT_TRUE(r2.queries[1].correct_at_1);
   for (const QueryRecord& q : r2.queries) {
-    if (!q.has_true_match_in_db) EXPECT_FALSE(q.correct_at_1) << q.query_id;
+    if (!q.has_true_match_in_db) {
+      EXPECT_FALSE(q.correct_at_1) << q.query_id;
+    }
   }
 }
 
@@ -184,8 +185,8 @@ TEST(EvaluateTest, EmptySelectionAndEmptyDatabaseAreErrors) {
                         QueryOptions()),
                std::invalid_argument);
   const Database empty(FeatureType::kOrb, 32);
-  EXPECT_THROW(Evaluate(empty, tmp.db(), *extractor, train,
-                        GroundTruth::FromMatchList({{1, {1}}}), eval, QueryOptions()),
+  EXPECT_THROW(Evaluate(empty, tmp.db(), *extractor, train, GroundTruth::FromMatchList({{1, {1}}}),
+                        eval, QueryOptions()),
                std::invalid_argument);
 }
 

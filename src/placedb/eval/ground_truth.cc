@@ -1,8 +1,8 @@
 #include "placedb/eval/ground_truth.h"
 
-#include <algorithm>
-
 #include <fmt/format.h>
+
+#include <algorithm>
 
 #include "placedb/util/check.h"
 

@@ -10,7 +10,8 @@ Frame FrameAt(int id, double x, double yaw_deg) {
   f.id = id;
   Pose p;
   p.translation = Eigen::Vector3d(x, 0, 0);
-  p.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(yaw_deg * M_PI / 180, Eigen::Vector3d::UnitY()));
+  p.rotation =
+      Eigen::Quaterniond(Eigen::AngleAxisd(yaw_deg * M_PI / 180, Eigen::Vector3d::UnitY()));
   f.pose = p;
   return f;
 }

@@ -1,16 +1,16 @@
 #include "placedb/exe/commands.h"
 
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <functional>
 #include <iostream>
 #include <map>
-
-#include <fmt/format.h>
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgcodecs.hpp>
-#include <spdlog/spdlog.h>
 
 #include "placedb/dataset/image_folder.h"
 #include "placedb/dataset/match_truth.h"
@@ -40,10 +40,13 @@ struct SourceArgs {
 
   void Add(CLI::App* cmd, const std::string& what) {
     auto* images_opt = cmd->add_option("--images", images,
-                                       what + ": a folder of images (sorted by name) or a text "
-                                              "file listing image paths");
-    auto* tum_opt = cmd->add_option("--tum", tum, what + ": a TUM RGB-D folder (rgb.txt, "
-                                                         "groundtruth.txt)");
+                                       what +
+                                           ": a folder of images (sorted by name) or a text "
+                                           "file listing image paths");
+    auto* tum_opt = cmd->add_option("--tum", tum,
+                                    what +
+                                        ": a TUM RGB-D folder (rgb.txt, "
+                                        "groundtruth.txt)");
     images_opt->excludes(tum_opt);
     cmd->add_option("--first", first, "first image id to use (1-based position in the listing)")
         ->capture_default_str()
@@ -61,7 +64,8 @@ struct SourceArgs {
     if (!tum.empty()) {
       std::vector<Frame> frames = ReadTumSequence(tum, tum_options);
       const size_t begin = static_cast<size_t>(first - 1);
-      const size_t end = last == 0 ? frames.size() : std::min(frames.size(), static_cast<size_t>(last));
+      const size_t end =
+          last == 0 ? frames.size() : std::min(frames.size(), static_cast<size_t>(last));
       PLACEDB_CHECK(begin < frames.size() && begin < end, "--first/--last select no TUM frame");
       return std::vector<Frame>(frames.begin() + begin, frames.begin() + end);
     }
@@ -228,15 +232,21 @@ int RunBuild() {
              r.num_keyframes ? static_cast<double>(r.num_features) / r.num_keyframes : 0.0);
   fmt::print("images        {} bytes (whole frames as PNG: {} bytes, reduction {:.1f}%)\n",
              r.image_bytes, r.full_png_bytes,
-             r.full_png_bytes ? 100.0 * (1.0 - static_cast<double>(r.image_bytes) / r.full_png_bytes)
-                              : 0.0);
+             r.full_png_bytes
+                 ? 100.0 * (1.0 - static_cast<double>(r.image_bytes) / r.full_png_bytes)
+                 : 0.0);
   fmt::print("feature file  {} bytes\n", r.feature_bytes);
   fmt::print("time          {:.2f} s\n", r.seconds);
-  nlohmann::json j = {{"database", g_build.out},        {"num_frames", r.num_frames},
-                      {"num_keyframes", r.num_keyframes}, {"num_skipped", r.num_skipped},
-                      {"skipped", r.skipped},            {"num_cropped", r.num_cropped},
-                      {"num_features", r.num_features},  {"image_bytes", r.image_bytes},
-                      {"feature_bytes", r.feature_bytes}, {"full_png_bytes", r.full_png_bytes},
+  nlohmann::json j = {{"database", g_build.out},
+                      {"num_frames", r.num_frames},
+                      {"num_keyframes", r.num_keyframes},
+                      {"num_skipped", r.num_skipped},
+                      {"skipped", r.skipped},
+                      {"num_cropped", r.num_cropped},
+                      {"num_features", r.num_features},
+                      {"image_bytes", r.image_bytes},
+                      {"feature_bytes", r.feature_bytes},
+                      {"full_png_bytes", r.full_png_bytes},
                       {"seconds", r.seconds}};
   WriteJson(g_build.json, j);
   return 0;
@@ -295,8 +305,8 @@ int RunQuery() {
     fmt::print("rank  keyframe  matches\n");
     for (size_t i = 0; i < r.ranked.size(); ++i) {
       fmt::print("{:>4}  {:>8}  {:>7}\n", i + 1, r.ranked[i].keyframe_id, r.ranked[i].score);
-      j["ranked"].push_back({{"keyframe_id", r.ranked[i].keyframe_id},
-                             {"score", r.ranked[i].score}});
+      j["ranked"].push_back(
+          {{"keyframe_id", r.ranked[i].keyframe_id}, {"score", r.ranked[i].score}});
     }
     j["best"] = {{"keyframe_id", best.id},
                  {"score", r.ranked[0].score},
@@ -363,7 +373,8 @@ int RunEval() {
   }
   EvalOptions options = g_eval.options;
   options.progress = !g_eval.quiet;
-  const EvalReport r = Evaluate(o.db, g_eval.db, *o.extractor, frames, truth, options, g_eval.query);
+  const EvalReport r =
+      Evaluate(o.db, g_eval.db, *o.extractor, frames, truth, options, g_eval.query);
   fmt::print("eval of {} ({} keyframes, {} features) on {}\n", g_eval.db, o.db.size(),
              FeatureTypeName(o.db.feature_type()), g_eval.source.Describe());
   fmt::print("{}", FormatEvalReport(r));
@@ -410,11 +421,13 @@ int RunInfo() {
              m.contains("counts") ? m["counts"].value("skipped_images", 0) : 0);
   fmt::print("features        {} ({:.1f} per keyframe)\n", db.num_features(),
              db.empty() ? 0.0 : static_cast<double>(db.num_features()) / db.size());
-  fmt::print("stored images   {} bytes\n", DirectorySize((fs::path(g_info.db) / "images").string()));
+  fmt::print("stored images   {} bytes\n",
+             DirectorySize((fs::path(g_info.db) / "images").string()));
   fmt::print("feature file    {} bytes\n",
              FileSize((fs::path(g_info.db) / Database::kKeyframesFile).string()));
   if (m.contains("bytes")) {
-    fmt::print("whole frames    {} bytes as PNG\n", m["bytes"].value("full_frames_png", uint64_t{0}));
+    fmt::print("whole frames    {} bytes as PNG\n",
+               m["bytes"].value("full_frames_png", uint64_t{0}));
   }
   size_t with_pose = 0;
   for (const Keyframe& k : db.keyframes()) with_pose += k.pose.has_value();
@@ -496,9 +509,9 @@ int RunBench() {
     }
   }
   const double descriptors_per_query = static_cast<double>(o.db.num_features());
-  fmt::print("bench of {} ({} keyframes, {} {} descriptors), {} queries x {} repeats\n",
-             g_bench.db, o.db.size(), o.db.num_features(), FeatureTypeName(o.db.feature_type()),
-             n, g_bench.repeat);
+  fmt::print("bench of {} ({} keyframes, {} {} descriptors), {} queries x {} repeats\n", g_bench.db,
+             o.db.size(), o.db.num_features(), FeatureTypeName(o.db.feature_type()), n,
+             g_bench.repeat);
   const char* kernel =
       o.db.feature_type() == FeatureType::kOrb ? HammingKernelName() : L2SquaredKernelName();
   fmt::print("distance kernel           {}\n", kernel);
@@ -528,9 +541,11 @@ int RunBench() {
 }
 
 const std::map<std::string, std::function<int()>>& Runners() {
-  static const std::map<std::string, std::function<int()>> runners = {
-      {"build", RunBuild}, {"query", RunQuery}, {"eval", RunEval},
-      {"info", RunInfo},   {"bench", RunBench}};
+  static const std::map<std::string, std::function<int()>> runners = {{"build", RunBuild},
+                                                                      {"query", RunQuery},
+                                                                      {"eval", RunEval},
+                                                                      {"info", RunInfo},
+                                                                      {"bench", RunBench}};
   return runners;
 }
 

@@ -1,15 +1,13 @@
 // Runs the placedb binary as a user would: every sub-command, the bad-input
 // cases, and the exit codes and one-line errors.
-#include <sys/wait.h>
-
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <string>
-
 #include <nlohmann/json.hpp>
+#include <string>
 
 #include "placedb/index/builder.h"
 #include "placedb/util/testing.h"
@@ -71,8 +69,9 @@ TEST_F(CliTest, HelpListsEverySubcommandAndOption) {
 
 TEST_F(CliTest, BuildQueryEvalInfo) {
   const std::string db = Path("db");
-  const CommandResult build = Placedb("build --images " + kImages + " --first 1 --last 40 --crop chroma --out " +
-                            db + " --quiet --json " + Path("build.json"));
+  const CommandResult build =
+      Placedb("build --images " + kImages + " --first 1 --last 40 --crop chroma --out " + db +
+              " --quiet --json " + Path("build.json"));
   ASSERT_EQ(build.code, 0) << build.output;
   EXPECT_TRUE(Contains(build.output, "40 of 40 frames")) << build.output;
   // No progress bar when not a terminal.
@@ -83,8 +82,8 @@ TEST_F(CliTest, BuildQueryEvalInfo) {
   EXPECT_TRUE(Contains(info.output, "keyframes       40")) << info.output;
   EXPECT_TRUE(Contains(info.output, "chroma"));
 
-  const CommandResult query = Placedb("query --db " + db + " --image " + kImages + "/042.jpg --top-k 3 --json " +
-                            Path("q.json"));
+  const CommandResult query = Placedb("query --db " + db + " --image " + kImages +
+                                      "/042.jpg --top-k 3 --json " + Path("q.json"));
   ASSERT_EQ(query.code, 0) << query.output;
   const auto q = nlohmann::json::parse(std::ifstream(Path("q.json")));
   ASSERT_FALSE(q["best"].is_null());
@@ -93,9 +92,9 @@ TEST_F(CliTest, BuildQueryEvalInfo) {
   EXPECT_LE(best, 4);
   EXPECT_EQ(q["ranked"].size(), 3u);
 
-  const CommandResult eval = Placedb("eval --db " + db + " --images " + kImages +
-                           " --first 41 --last 84 --truth " + kTruth + " --queries 20 --seed 3 --quiet --json " +
-                           Path("e.json"));
+  const CommandResult eval =
+      Placedb("eval --db " + db + " --images " + kImages + " --first 41 --last 84 --truth " +
+              kTruth + " --queries 20 --seed 3 --quiet --json " + Path("e.json"));
   ASSERT_EQ(eval.code, 0) << eval.output;
   const auto e = nlohmann::json::parse(std::ifstream(Path("e.json")));
   EXPECT_EQ(e["num_queries"], 20);
@@ -113,13 +112,14 @@ TEST_F(CliTest, UnreadableImageIsSkippedAndCountedOrFatalWithStrict) {
     fs::copy_file(kImages + "/" + name, images / name);
   }
   std::ofstream(images / "004.jpg") << "this is not a jpeg";
-  const CommandResult skip = Placedb("build --images " + images.string() + " --out " + Path("db") + " --quiet");
+  const CommandResult skip =
+      Placedb("build --images " + images.string() + " --out " + Path("db") + " --quiet");
   ASSERT_EQ(skip.code, 0) << skip.output;
   EXPECT_TRUE(Contains(skip.output, "3 of 4 frames (1 skipped")) << skip.output;
   EXPECT_TRUE(Contains(skip.output, "004.jpg")) << skip.output;
 
-  const CommandResult strict = Placedb("build --images " + images.string() + " --out " + Path("db2") +
-                             " --quiet --strict");
+  const CommandResult strict =
+      Placedb("build --images " + images.string() + " --out " + Path("db2") + " --quiet --strict");
   EXPECT_EQ(strict.code, 1);
   EXPECT_TRUE(Contains(strict.output, "placedb: error:")) << strict.output;
   EXPECT_TRUE(Contains(strict.output, "004.jpg")) << strict.output;
@@ -130,11 +130,13 @@ TEST_F(CliTest, ClearErrors) {
   const std::string db = Path("db");
   ASSERT_EQ(Placedb("build --images " + kImages + " --last 3 --out " + db + " --quiet").code, 0);
   // Building over an existing database needs --overwrite.
-  const CommandResult again = Placedb("build --images " + kImages + " --last 3 --out " + db + " --quiet");
+  const CommandResult again =
+      Placedb("build --images " + kImages + " --last 3 --out " + db + " --quiet");
   EXPECT_EQ(again.code, 1);
   EXPECT_TRUE(Contains(again.output, "--overwrite")) << again.output;
   // Asking for other features than the database holds names both.
-  const CommandResult wrong = Placedb("query --db " + db + " --image " + kImages + "/001.jpg --features surf");
+  const CommandResult wrong =
+      Placedb("query --db " + db + " --image " + kImages + "/001.jpg --features surf");
   EXPECT_EQ(wrong.code, 1);
   EXPECT_TRUE(Contains(wrong.output, "orb")) << wrong.output;
   EXPECT_TRUE(Contains(wrong.output, "surf")) << wrong.output;
@@ -145,10 +147,12 @@ TEST_F(CliTest, ClearErrors) {
   const CommandResult no_image = Placedb("query --db " + db + " --image " + Path("none.png"));
   EXPECT_EQ(no_image.code, 1);
   EXPECT_TRUE(Contains(no_image.output, "cannot read query image")) << no_image.output;
-  const CommandResult bad_resize = Placedb("build --images " + kImages + " --out " + Path("x") + " --resize 3");
+  const CommandResult bad_resize =
+      Placedb("build --images " + kImages + " --out " + Path("x") + " --resize 3");
   EXPECT_NE(bad_resize.code, 0);
   EXPECT_TRUE(Contains(bad_resize.output, "resize")) << bad_resize.output;
-  const CommandResult no_truth = Placedb("eval --db " + db + " --images " + kImages + " --first 41");
+  const CommandResult no_truth =
+      Placedb("eval --db " + db + " --images " + kImages + " --first 41");
   EXPECT_EQ(no_truth.code, 1);
   EXPECT_TRUE(Contains(no_truth.output, "--truth")) << no_truth.output;
 }
@@ -164,12 +168,13 @@ TEST_F(CliTest, TinyImagesGiveZeroFeaturesWithoutError) {
     for (int i = 0; i < side * side; ++i) ppm.put(static_cast<char>(i * 37)).put('a').put('z');
   }
   const CommandResult build = Placedb("build --images " + images.string() + " --out " + Path("db") +
-                            " --crop chroma --quiet");
+                                      " --crop chroma --quiet");
   ASSERT_EQ(build.code, 0) << build.output;
   EXPECT_TRUE(Contains(build.output, "2 of 2 frames")) << build.output;
   EXPECT_TRUE(Contains(build.output, "features      0")) << build.output;
   // Querying it: nothing can match, and it says so.
-  const CommandResult query = Placedb("query --db " + Path("db") + " --image " + kImages + "/001.jpg");
+  const CommandResult query =
+      Placedb("query --db " + Path("db") + " --image " + kImages + "/001.jpg");
   EXPECT_EQ(query.code, 0) << query.output;
   EXPECT_TRUE(Contains(query.output, "no match")) << query.output;
 }
@@ -181,7 +186,8 @@ TEST_F(CliTest, QueryAgainstAnEmptyDatabaseSaysSo) {
   empty.info()["settings"] = placedb::BuildSettingsToJson(placedb::BuildOptions());
   fs::create_directories(Path("empty"));
   empty.Save(Path("empty"));
-  const CommandResult query = Placedb("query --db " + Path("empty") + " --image " + kImages + "/001.jpg");
+  const CommandResult query =
+      Placedb("query --db " + Path("empty") + " --image " + kImages + "/001.jpg");
   EXPECT_EQ(query.code, 2);
   EXPECT_TRUE(Contains(query.output, "empty")) << query.output;
   const CommandResult info = Placedb("info --db " + Path("empty"));
@@ -192,8 +198,9 @@ TEST_F(CliTest, QueryAgainstAnEmptyDatabaseSaysSo) {
 TEST_F(CliTest, BenchComparesWithBfMatcher) {
   const std::string db = Path("db");
   ASSERT_EQ(Placedb("build --images " + kImages + " --last 10 --out " + db + " --quiet").code, 0);
-  const CommandResult bench = Placedb("bench --db " + db + " --images " + kImages +
-                            " --first 41 --last 50 --queries 5 --repeat 1 --json " + Path("b.json"));
+  const CommandResult bench =
+      Placedb("bench --db " + db + " --images " + kImages +
+              " --first 41 --last 50 --queries 5 --repeat 1 --json " + Path("b.json"));
   ASSERT_EQ(bench.code, 0) << bench.output;
   const auto b = nlohmann::json::parse(std::ifstream(Path("b.json")));
   EXPECT_EQ(b["num_queries"], 5);

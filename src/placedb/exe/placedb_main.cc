@@ -1,15 +1,15 @@
 // The `placedb` command: one sub-command table. Flags bind straight onto the
 // library's options structs, so --help and the code cannot drift apart.
+#include <fmt/format.h>
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+
+#include <CLI/CLI.hpp>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
 #include <memory>
-
-#include <CLI/CLI.hpp>
 #include <opencv2/core/utils/logger.hpp>
-#include <fmt/format.h>
-#include <spdlog/sinks/stdout_color_sinks.h>
-#include <spdlog/spdlog.h>
 
 #include "placedb/exe/commands.h"
 

@@ -2,9 +2,8 @@
 #pragma once
 
 #include <memory>
-#include <string>
-
 #include <opencv2/core.hpp>
+#include <string>
 
 #include "placedb/feature/surf/surf.h"
 #include "placedb/feature/types.h"

@@ -7,9 +7,9 @@ namespace {
 
 TEST(ChromaticityTest, KnownPixels) {
   cv::Mat img(1, 3, CV_8UC3);
-  img.at<cv::Vec3b>(0, 0) = cv::Vec3b(0, 0, 0);        // black
-  img.at<cv::Vec3b>(0, 1) = cv::Vec3b(10, 30, 60);     // B G R
-  img.at<cv::Vec3b>(0, 2) = cv::Vec3b(0, 0, 200);      // pure red
+  img.at<cv::Vec3b>(0, 0) = cv::Vec3b(0, 0, 0);     // black
+  img.at<cv::Vec3b>(0, 1) = cv::Vec3b(10, 30, 60);  // B G R
+  img.at<cv::Vec3b>(0, 2) = cv::Vec3b(0, 0, 200);   // pure red
   const auto planes = RgChromaticity(img);
   EXPECT_FLOAT_EQ(planes[0].at<float>(0, 0), 1.f / 3.f);
   EXPECT_FLOAT_EQ(planes[1].at<float>(0, 0), 1.f / 3.f);

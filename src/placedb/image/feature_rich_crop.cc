@@ -1,11 +1,11 @@
 #include "placedb/image/feature_rich_crop.h"
 
-#include <algorithm>
-#include <vector>
+#include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
-#include <spdlog/spdlog.h>
+#include <vector>
 
 #include "placedb/util/check.h"
 
@@ -87,11 +87,11 @@ CropResult SelectFeatureRichCrop(const cv::Mat& image, const CropOptions& option
   CropResult result;
   result.roi = cv::Rect(0, 0, image.cols, image.rows);
   if (image.channels() != 3 || image.depth() != CV_8U) {
-    spdlog::warn("feature-rich crop needs an 8-bit colour image (got {} channel(s)); keeping the "
-                 "whole image",
-                 image.channels());
-    result.fast_keypoints =
-        CountFastKeypoints(image, options.fast_threshold, options.fast_nonmax);
+    spdlog::warn(
+        "feature-rich crop needs an 8-bit colour image (got {} channel(s)); keeping the "
+        "whole image",
+        image.channels());
+    result.fast_keypoints = CountFastKeypoints(image, options.fast_threshold, options.fast_nonmax);
     return result;
   }
   const std::array<cv::Mat, 3> planes = RgChromaticity(image);
@@ -116,8 +116,7 @@ CropResult SelectFeatureRichCrop(const cv::Mat& image, const CropOptions& option
     }
   }
   if (best < 0) {
-    result.fast_keypoints =
-        CountFastKeypoints(image, options.fast_threshold, options.fast_nonmax);
+    result.fast_keypoints = CountFastKeypoints(image, options.fast_threshold, options.fast_nonmax);
     return result;
   }
   result.whole_image = false;

@@ -7,9 +7,8 @@
 #pragma once
 
 #include <array>
-#include <string>
-
 #include <opencv2/core.hpp>
+#include <string>
 
 #include "placedb/image/chromaticity.h"
 
@@ -43,16 +42,16 @@ struct CropOptions {
 
 // What the selection looked at for one channel.
 struct CropCandidate {
-  bool valid = false;     // false when the channel had no concentrated region
-  cv::Rect roi;           // in the input image
-  int fast_keypoints = 0; // FAST corners counted on the crop
+  bool valid = false;      // false when the channel had no concentrated region
+  cv::Rect roi;            // in the input image
+  int fast_keypoints = 0;  // FAST corners counted on the crop
 };
 
 struct CropResult {
-  cv::Rect roi;                 // the kept region (the whole image when no winner)
-  bool whole_image = true;      // true when no candidate qualified
-  int channel = -1;             // winning ChromaChannel, -1 for the whole image
-  int fast_keypoints = 0;       // FAST corners on the kept region
+  cv::Rect roi;                             // the kept region (the whole image when no winner)
+  bool whole_image = true;                  // true when no candidate qualified
+  int channel = -1;                         // winning ChromaChannel, -1 for the whole image
+  int fast_keypoints = 0;                   // FAST corners on the kept region
   std::array<CropCandidate, 3> candidates;  // r, g, b
 };
 

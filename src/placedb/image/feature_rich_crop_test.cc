@@ -54,7 +54,8 @@ TEST(FeatureRichCropTest, TexturedRedPatchOnGreyIsFound) {
   EXPECT_EQ((r.roi & patch), patch) << r.roi;
   EXPECT_LE(r.roi.width, patch.width + 2 * options.padding + 40) << r.roi;
   EXPECT_LE(r.roi.height, patch.height + 2 * options.padding + 40) << r.roi;
-  // Without padding the box hugs the patch (smoothing and the grey noise next to it add up to ~20 px).
+  // Without padding the box hugs the patch (smoothing and the grey noise next to it add up to ~20
+  // px).
   CropOptions tight = options;
   tight.padding = 0;
   const CropResult t = SelectFeatureRichCrop(img, tight);

@@ -2,9 +2,8 @@
 // and 1/16 of the area: sides x1, x1/2, x1/4).
 #pragma once
 
-#include <string>
-
 #include <opencv2/core.hpp>
+#include <string>
 
 namespace placedb {
 

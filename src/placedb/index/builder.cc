@@ -1,6 +1,7 @@
 #include "placedb/index/builder.h"
 
 #include <fcntl.h>
+#include <spdlog/spdlog.h>
 #include <stdio.h>
 #include <unistd.h>
 
@@ -9,9 +10,7 @@
 #include <ctime>
 #include <filesystem>
 #include <mutex>
-
 #include <opencv2/imgcodecs.hpp>
-#include <spdlog/spdlog.h>
 
 #include "placedb/image/resize.h"
 #include "placedb/util/check.h"
@@ -103,8 +102,8 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(CropOptions, smooth_sigma, percentile, paddin
                                    min_region_pixels)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(OrbOptions, max_features, scale_factor, num_levels,
                                    edge_threshold, fast_threshold, patch_size)
-NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(SurfOptions, hessian_threshold, num_octaves,
-                                   num_octave_layers, extended, upright, max_features)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(SurfOptions, hessian_threshold, num_octaves, num_octave_layers,
+                                   extended, upright, max_features)
 
 nlohmann::json BuildSettingsToJson(const BuildOptions& o) {
   nlohmann::json j;
@@ -262,7 +261,8 @@ BuildReport BuildDatabase(const std::vector<Frame>& frames, const BuildOptions& 
     report.num_keyframes = db.size();
     report.num_features = db.num_features();
     if (db.empty()) {
-      PLACEDB_THROW_RUNTIME("none of the ", frames.size(), " images could be read; no database built");
+      PLACEDB_THROW_RUNTIME("none of the ", frames.size(),
+                            " images could be read; no database built");
     }
     if (!options.store_images) fs::remove_all(tmp / "images");
 

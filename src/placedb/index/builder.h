@@ -50,15 +50,15 @@ struct BuildOptions {
 };
 
 struct BuildReport {
-  size_t num_frames = 0;       // frames given
-  size_t num_keyframes = 0;    // stored
-  size_t num_skipped = 0;      // unreadable images skipped
+  size_t num_frames = 0;             // frames given
+  size_t num_keyframes = 0;          // stored
+  size_t num_skipped = 0;            // unreadable images skipped
   std::vector<std::string> skipped;  // their paths
-  size_t num_cropped = 0;      // keyframes kept as a crop (not whole)
+  size_t num_cropped = 0;            // keyframes kept as a crop (not whole)
   size_t num_features = 0;
-  uint64_t image_bytes = 0;        // stored PNGs
-  uint64_t feature_bytes = 0;      // keyframes.bin
-  uint64_t full_png_bytes = 0;     // every readable frame stored whole as PNG
+  uint64_t image_bytes = 0;     // stored PNGs
+  uint64_t feature_bytes = 0;   // keyframes.bin
+  uint64_t full_png_bytes = 0;  // every readable frame stored whole as PNG
   double seconds = 0.0;
 };
 

@@ -10,12 +10,11 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <opencv2/core/utility.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <random>
 #include <string>
 #include <thread>
-
-#include <opencv2/core/utility.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 #include "placedb/dataset/image_folder.h"
 #include "placedb/util/file_io.h"
@@ -28,8 +27,6 @@ using testing_util::ThrowsWith;
 namespace fs = std::filesystem;
 
 const std::string kImages = PLACEDB_DATA_DIR "/rtabmap_loop/images";
-
-
 
 BuildOptions SmallBuild() {
   BuildOptions options;
@@ -151,8 +148,8 @@ TEST(BuilderTest, ExtractorOptionsRoundTripThroughManifest) {
   options.features.surf.max_features = 77;
   options.features.surf.num_octaves = 3;
   options.store_images = false;
-  const BuildReport report = BuildDatabase(ListImageFolder(kImages, 1, 3), options,
-                                           tmp.Path("db"), "three images");
+  const BuildReport report =
+      BuildDatabase(ListImageFolder(kImages, 1, 3), options, tmp.Path("db"), "three images");
   EXPECT_EQ(report.num_keyframes, 3u);
   EXPECT_EQ(report.image_bytes, 0u);
   EXPECT_FALSE(fs::exists(tmp.Path("db/images")));

@@ -67,9 +67,10 @@ void Database::AddKeyframe(Keyframe keyframe, const FeatureSet& features) {
                           " features to a database of ", FeatureTypeName(feature_type_),
                           " features");
   }
-  const int row_bytes = static_cast<int>(features.descriptors.cols * features.descriptors.elemSize());
-  PLACEDB_CHECK(features.empty() || row_bytes == descriptor_bytes_,
-                "descriptor width ", row_bytes, " differs from the database's ", descriptor_bytes_);
+  const int row_bytes =
+      static_cast<int>(features.descriptors.cols * features.descriptors.elemSize());
+  PLACEDB_CHECK(features.empty() || row_bytes == descriptor_bytes_, "descriptor width ", row_bytes,
+                " differs from the database's ", descriptor_bytes_);
   PLACEDB_CHECK(features.descriptors.rows == static_cast<int>(features.keypoints.size()),
                 "one descriptor per keypoint expected");
   PLACEDB_CHECK(IndexOfId(keyframe.id) < 0, "duplicate keyframe id ", keyframe.id);
@@ -165,8 +166,8 @@ void Database::DecodeKeyframes(const std::string& bytes, const std::string& path
   const uint32_t version = header.Get<uint32_t>();
   if (version != kDatabaseFormatVersion) {
     PLACEDB_THROW_RUNTIME(path, ": format version ", version,
-                          " is not supported (this placedb reads version ",
-                          kDatabaseFormatVersion, ")");
+                          " is not supported (this placedb reads version ", kDatabaseFormatVersion,
+                          ")");
   }
   if (bytes.size() < sizeof(kMagic) + 4 + 4) {
     PLACEDB_THROW_RUNTIME(path, ": file is truncated");
@@ -181,8 +182,8 @@ void Database::DecodeKeyframes(const std::string& bytes, const std::string& path
   const uint64_t string_bytes = header.Get<uint64_t>();
   constexpr uint64_t kKeyframeRecord = 152;
   constexpr uint64_t kKeypointRecord = 28;
-  uint64_t expected = header.position() + num_keyframes * kKeyframeRecord +
-                      num_features * kKeypointRecord;
+  uint64_t expected =
+      header.position() + num_keyframes * kKeyframeRecord + num_features * kKeypointRecord;
   expected = (expected + kDescriptorAlignment - 1) / kDescriptorAlignment * kDescriptorAlignment;
   expected += num_features * row_bytes + string_bytes + 4;
   if (num_keyframes > bytes.size() || num_features > bytes.size() || row_bytes > 4096 ||
@@ -292,7 +293,8 @@ void Database::Save(const std::string& dir) const {
 
 Database Database::Load(const std::string& dir) {
   std::error_code ec;
-  if (!fs::is_directory(dir, ec)) PLACEDB_THROW_RUNTIME("no database at ", dir, " (not a directory)");
+  if (!fs::is_directory(dir, ec))
+    PLACEDB_THROW_RUNTIME("no database at ", dir, " (not a directory)");
   const std::string manifest_path = (fs::path(dir) / kManifestFile).string();
   if (!fs::exists(manifest_path, ec)) {
     PLACEDB_THROW_RUNTIME("no database at ", dir, " (", kManifestFile, " is missing)");
@@ -325,8 +327,8 @@ Database Database::Load(const std::string& dir) {
   }
   if (version != kDatabaseFormatVersion) {
     PLACEDB_THROW_RUNTIME(dir, ": database format version ", version,
-                          " is not supported (this placedb reads version ",
-                          kDatabaseFormatVersion, ")");
+                          " is not supported (this placedb reads version ", kDatabaseFormatVersion,
+                          ")");
   }
   const std::string bin_path = (fs::path(dir) / kKeyframesFile).string();
   if (!fs::exists(bin_path, ec)) {

@@ -10,12 +10,11 @@
 #pragma once
 
 #include <cstdint>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
-#include <opencv2/core.hpp>
 
 #include "placedb/feature/types.h"
 #include "placedb/match/ratio_matcher.h"
@@ -27,16 +26,16 @@ namespace placedb {
 constexpr uint32_t kDatabaseFormatVersion = 1;
 
 struct Keyframe {
-  int32_t id = 0;                 // the source frame's id
-  double timestamp = -1.0;        // seconds, -1 when unknown
-  std::optional<Pose> pose;       // ground-truth / map pose, when known
-  cv::Rect crop;                  // kept region, in the original image
-  int32_t crop_channel = -1;      // winning chromaticity channel, -1: whole image
-  cv::Size original_size;         // of the source image
-  cv::Size stored_size;           // of the stored (cropped, resized) image
-  double scale = 1.0;             // stored = (original - crop.tl()) * scale
-  std::string source;             // path of the source image
-  std::string image_file;         // stored PNG relative to the database dir ("" if none)
+  int32_t id = 0;             // the source frame's id
+  double timestamp = -1.0;    // seconds, -1 when unknown
+  std::optional<Pose> pose;   // ground-truth / map pose, when known
+  cv::Rect crop;              // kept region, in the original image
+  int32_t crop_channel = -1;  // winning chromaticity channel, -1: whole image
+  cv::Size original_size;     // of the source image
+  cv::Size stored_size;       // of the stored (cropped, resized) image
+  double scale = 1.0;         // stored = (original - crop.tl()) * scale
+  std::string source;         // path of the source image
+  std::string image_file;     // stored PNG relative to the database dir ("" if none)
 
   // Maps a point of the stored image back to the original image.
   cv::Point2f ToOriginal(const cv::Point2f& stored) const {

@@ -7,10 +7,9 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <string>
-
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <string>
 
 #include "placedb/feature/extractor.h"
 #include "placedb/util/file_io.h"
@@ -54,7 +53,8 @@ Database MakeDatabase(const ExtractorOptions& options, int n, bool with_poses) {
     if (with_poses && i % 2 == 1) {
       Pose pose;
       pose.translation = Eigen::Vector3d(0.1 * i, -2.5, 3.0 + i);
-      pose.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(0.1 * i, Eigen::Vector3d(1, 2, 3).normalized()));
+      pose.rotation =
+          Eigen::Quaterniond(Eigen::AngleAxisd(0.1 * i, Eigen::Vector3d(1, 2, 3).normalized()));
       k.pose = pose;
     }
     db.AddKeyframe(k, extractor->Extract(stored));
@@ -161,9 +161,7 @@ void RoundTrip(const ExtractorOptions& options, bool with_poses) {
   EXPECT_EQ(loaded2.info(), loaded.info());
 }
 
-TEST(DatabaseTest, RoundTripOrbWithPoses) {
-  RoundTrip(ExtractorOptions(), /*with_poses=*/true);
-}
+TEST(DatabaseTest, RoundTripOrbWithPoses) { RoundTrip(ExtractorOptions(), /*with_poses=*/true); }
 
 TEST(DatabaseTest, RoundTripOrbWithoutPoses) {
   RoundTrip(ExtractorOptions(), /*with_poses=*/false);
@@ -328,8 +326,7 @@ TEST_F(DatabaseFileTest, MissingKeyframesFile) {
 TEST_F(DatabaseFileTest, NotADirectory) {
   EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { Database::Load(Dir() + "/nothing_here"); },
                                              "(not a directory)"));
-  EXPECT_TRUE(
-      ThrowsWith<std::runtime_error>([&] { Database::Load(bin_); }, "(not a directory)"));
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { Database::Load(bin_); }, "(not a directory)"));
 }
 
 TEST_F(DatabaseFileTest, ManifestNotJson) {
@@ -368,7 +365,8 @@ TEST(DatabaseTest, AddingSurfFeaturesToOrbDatabaseThrows) {
   EXPECT_EQ(db.size(), 1u);  // unchanged
   // A SURF database refuses ORB features the same way.
   Database surf_db(FeatureType::kSurf, 256);
-  const FeatureSet orb = FeatureExtractor::Create(ExtractorOptions())->Extract(cv::imread(RtabmapImage(5)));
+  const FeatureSet orb =
+      FeatureExtractor::Create(ExtractorOptions())->Extract(cv::imread(RtabmapImage(5)));
   EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { surf_db.AddKeyframe(k, orb); },
                                                 "cannot add orb features to a database of surf"));
   EXPECT_TRUE(surf_db.empty());
@@ -377,7 +375,8 @@ TEST(DatabaseTest, AddingSurfFeaturesToOrbDatabaseThrows) {
 TEST(DatabaseTest, DuplicateKeyframeIdThrows) {
   Database db = MakeDatabase(ExtractorOptions(), 2, false);  // ids 10, 20
   const size_t features = db.num_features();
-  const FeatureSet set = FeatureExtractor::Create(ExtractorOptions())->Extract(cv::imread(RtabmapImage(7)));
+  const FeatureSet set =
+      FeatureExtractor::Create(ExtractorOptions())->Extract(cv::imread(RtabmapImage(7)));
   Keyframe k;
   k.id = 20;
   EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { db.AddKeyframe(k, set); },

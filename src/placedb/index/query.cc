@@ -20,7 +20,8 @@ std::vector<ScoredKeyframe> RankPartition(const Database& db, const DescriptorBl
   scored.reserve(end - begin);
   for (size_t i = begin; i < end; ++i) {
     const int good = CountRatioMatches(query, db.Descriptors(i), options.match);
-    if (good >= options.min_matches) scored.push_back({db.keyframe(i).id, static_cast<double>(good)});
+    if (good >= options.min_matches)
+      scored.push_back({db.keyframe(i).id, static_cast<double>(good)});
   }
   return TopK(std::move(scored), options.top_k);
 }

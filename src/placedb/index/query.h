@@ -3,11 +3,10 @@
 // the best keyframe's pose and the time taken.
 #pragma once
 
+#include <opencv2/core.hpp>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "placedb/feature/extractor.h"
 #include "placedb/index/database.h"

@@ -8,15 +8,14 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <opencv2/imgcodecs.hpp>
 #include <set>
 #include <sstream>
 
-#include <opencv2/imgcodecs.hpp>
-
 #include "placedb/dataset/image_folder.h"
 #include "placedb/index/builder.h"
-#include "placedb/util/thread_pool.h"
 #include "placedb/util/testing.h"
+#include "placedb/util/thread_pool.h"
 
 namespace placedb {
 namespace {
@@ -85,7 +84,8 @@ TEST_F(QueryTest, Image42RanksATrueMatchFirst) {
   ASSERT_TRUE(result.found());
   EXPECT_EQ(result.ranked.size(), 5u);
   const std::set<int> truth = {1, 2, 3, 4};
-  EXPECT_EQ(truth.count(result.ranked[0].keyframe_id), 1u) << "best " << result.ranked[0].keyframe_id;
+  EXPECT_EQ(truth.count(result.ranked[0].keyframe_id), 1u)
+      << "best " << result.ranked[0].keyframe_id;
   EXPECT_GT(result.num_query_features, 300);
   EXPECT_GE(result.ranked[0].score, 20.0);
   EXPECT_GE(result.total_ms, result.match_ms);
@@ -177,9 +177,9 @@ TEST_F(QueryTest, SurfQueryAgainstOrbDatabaseThrows) {
   const cv::Mat image = cv::imread(RtabmapImage(42));
   const FeatureSet features = surf_extractor->Extract(image);
   ASSERT_FALSE(features.empty());
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
-      [&] { QueryFeatures(*db_, features, QueryOptions()); },
-      "the query has surf features but the database holds orb"));
+  EXPECT_TRUE(
+      ThrowsWith<std::invalid_argument>([&] { QueryFeatures(*db_, features, QueryOptions()); },
+                                        "the query has surf features but the database holds orb"));
   EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
       [&] { QueryImage(*db_, *surf_extractor, image, QueryOptions()); },
       "the query has surf features but the database holds orb"));
@@ -275,8 +275,8 @@ TEST(QueryOptionsTest, CheckRejectsBadValues) {
 // The whole pipeline from disk: a built (chroma crop, 1/4 area) database
 // still finds a true match for query 42 with a full, uncropped query frame.
 TEST(QueryBuiltDatabaseTest, BuiltDatabaseAnswersQuery42) {
-  const fs::path dir = fs::temp_directory_path() /
-                       ("placedb_index_query_" + std::to_string(::getpid()) + "_built");
+  const fs::path dir =
+      fs::temp_directory_path() / ("placedb_index_query_" + std::to_string(::getpid()) + "_built");
   fs::remove_all(dir);
   BuildOptions build;
   build.crop = CropMode::kChroma;
@@ -288,11 +288,13 @@ TEST(QueryBuiltDatabaseTest, BuiltDatabaseAnswersQuery42) {
   const Database db = Database::Load((dir / "db").string());
   ASSERT_EQ(db.size(), 20u);
   const auto extractor = FeatureExtractor::Create(ExtractorOptionsFromManifest(db.info()));
-  const QueryResult result = QueryImage(db, *extractor, cv::imread(RtabmapImage(42)), QueryOptions());
+  const QueryResult result =
+      QueryImage(db, *extractor, cv::imread(RtabmapImage(42)), QueryOptions());
   fs::remove_all(dir);
   ASSERT_TRUE(result.found());
   const std::set<int> truth = {1, 2, 3, 4};
-  EXPECT_EQ(truth.count(result.ranked[0].keyframe_id), 1u) << "best " << result.ranked[0].keyframe_id;
+  EXPECT_EQ(truth.count(result.ranked[0].keyframe_id), 1u)
+      << "best " << result.ranked[0].keyframe_id;
 }
 
 }  // namespace

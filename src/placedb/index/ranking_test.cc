@@ -49,7 +49,8 @@ TEST(RankingTest, TopKMatchesFullSortOnRandomLists) {
     std::vector<ScoredKeyframe> list;
     for (int i = 0; i < n; ++i) {
       // Few distinct scores: many ties.
-      list.push_back({i * 3 + 1, static_cast<double>(std::uniform_int_distribution<int>(0, 5)(rng))});
+      list.push_back(
+          {i * 3 + 1, static_cast<double>(std::uniform_int_distribution<int>(0, 5)(rng))});
     }
     std::shuffle(list.begin(), list.end(), rng);
     const std::vector<ScoredKeyframe> sorted = SortedCopy(list);
@@ -85,7 +86,8 @@ TEST(RankingTest, MergeOfPartitionTopKEqualsTopKOfWhole) {
     for (auto& part : partition) partial.push_back(TopK(part, k));
     const std::vector<ScoredKeyframe> merged = MergeRankedLists(partial, k);
     const std::vector<ScoredKeyframe> expected = TopK(whole, k);
-    ASSERT_EQ(merged, expected) << "seed " << seed << " n " << n << " parts " << parts << " k " << k;
+    ASSERT_EQ(merged, expected) << "seed " << seed << " n " << n << " parts " << parts << " k "
+                                << k;
     EXPECT_EQ(merged.size(), std::min<size_t>(n, k));
     ++checked;
   }

@@ -22,7 +22,7 @@ inline void Update(TwoNearest& out, uint32_t d, int index) { out.Update(d, index
 
 #if PLACEDB_X86
 __attribute__((target("popcnt"))) uint32_t HammingPopcnt(const uint8_t* a, const uint8_t* b,
-                                                          int bytes) {
+                                                         int bytes) {
   uint32_t total = 0;
   int i = 0;
   for (; i + 8 <= bytes; i += 8) {
@@ -36,8 +36,8 @@ __attribute__((target("popcnt"))) uint32_t HammingPopcnt(const uint8_t* a, const
 }
 
 __attribute__((target("popcnt"))) TwoNearest TwoNearestPopcnt(const uint8_t* query,
-                                                               const uint8_t* db, int count,
-                                                               int bytes) {
+                                                              const uint8_t* db, int count,
+                                                              int bytes) {
   TwoNearest out;
   if (bytes == 32) {
     uint64_t q[4];
@@ -45,9 +45,9 @@ __attribute__((target("popcnt"))) TwoNearest TwoNearestPopcnt(const uint8_t* que
     for (int j = 0; j < count; ++j) {
       uint64_t d[4];
       std::memcpy(d, db + static_cast<size_t>(j) * 32, 32);
-      const uint32_t dist = static_cast<uint32_t>(
-          _mm_popcnt_u64(q[0] ^ d[0]) + _mm_popcnt_u64(q[1] ^ d[1]) +
-          _mm_popcnt_u64(q[2] ^ d[2]) + _mm_popcnt_u64(q[3] ^ d[3]));
+      const uint32_t dist =
+          static_cast<uint32_t>(_mm_popcnt_u64(q[0] ^ d[0]) + _mm_popcnt_u64(q[1] ^ d[1]) +
+                                _mm_popcnt_u64(q[2] ^ d[2]) + _mm_popcnt_u64(q[3] ^ d[3]));
       Update(out, dist, j);
     }
     return out;
@@ -68,8 +68,8 @@ __attribute__((target("avx2"))) inline __m256i PopcountBytesAvx2(__m256i v, __m2
 // AVX2: popcount of 32-byte XORs by the nibble-lookup method (Mula), four
 // database descriptors per step so the horizontal sums are shared.
 __attribute__((target("avx2,popcnt"))) TwoNearest TwoNearestAvx2(const uint8_t* query,
-                                                                   const uint8_t* db, int count,
-                                                                   int bytes) {
+                                                                 const uint8_t* db, int count,
+                                                                 int bytes) {
   if (bytes != 32) return TwoNearestPopcnt(query, db, count, bytes);
   TwoNearest out;
   const __m256i lut = _mm256_setr_epi8(0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4, 0, 1, 1, 2,
@@ -82,23 +82,31 @@ __attribute__((target("avx2,popcnt"))) TwoNearest TwoNearestAvx2(const uint8_t* 
     const uint8_t* p = db + static_cast<size_t>(j) * 32;
     // Per descriptor: 4 partial sums (u64 lanes) of byte popcounts.
     const __m256i s0 = _mm256_sad_epu8(
-        PopcountBytesAvx2(_mm256_xor_si256(q, _mm256_loadu_si256((const __m256i*)(p))), lut, low_mask), zero);
+        PopcountBytesAvx2(_mm256_xor_si256(q, _mm256_loadu_si256((const __m256i*)(p))), lut,
+                          low_mask),
+        zero);
     const __m256i s1 = _mm256_sad_epu8(
-        PopcountBytesAvx2(_mm256_xor_si256(q, _mm256_loadu_si256((const __m256i*)(p + 32))), lut, low_mask), zero);
+        PopcountBytesAvx2(_mm256_xor_si256(q, _mm256_loadu_si256((const __m256i*)(p + 32))), lut,
+                          low_mask),
+        zero);
     const __m256i s2 = _mm256_sad_epu8(
-        PopcountBytesAvx2(_mm256_xor_si256(q, _mm256_loadu_si256((const __m256i*)(p + 64))), lut, low_mask), zero);
+        PopcountBytesAvx2(_mm256_xor_si256(q, _mm256_loadu_si256((const __m256i*)(p + 64))), lut,
+                          low_mask),
+        zero);
     const __m256i s3 = _mm256_sad_epu8(
-        PopcountBytesAvx2(_mm256_xor_si256(q, _mm256_loadu_si256((const __m256i*)(p + 96))), lut, low_mask), zero);
+        PopcountBytesAvx2(_mm256_xor_si256(q, _mm256_loadu_si256((const __m256i*)(p + 96))), lut,
+                          low_mask),
+        zero);
     // Sums fit in 32 bits: pack lanes so one horizontal add serves four.
     // s01 lanes: [s0a+s0b... ] via unpack of 64-bit lanes.
     const __m256i s01 = _mm256_add_epi64(_mm256_unpacklo_epi64(s0, s1),
                                          _mm256_unpackhi_epi64(s0, s1));  // [d0,d1 | d0,d1]
     const __m256i s23 = _mm256_add_epi64(_mm256_unpacklo_epi64(s2, s3),
                                          _mm256_unpackhi_epi64(s2, s3));  // [d2,d3 | d2,d3]
-    const __m128i t01 = _mm_add_epi64(_mm256_castsi256_si128(s01),
-                                      _mm256_extracti128_si256(s01, 1));  // d0, d1
-    const __m128i t23 = _mm_add_epi64(_mm256_castsi256_si128(s23),
-                                      _mm256_extracti128_si256(s23, 1));  // d2, d3
+    const __m128i t01 =
+        _mm_add_epi64(_mm256_castsi256_si128(s01), _mm256_extracti128_si256(s01, 1));  // d0, d1
+    const __m128i t23 =
+        _mm_add_epi64(_mm256_castsi256_si128(s23), _mm256_extracti128_si256(s23, 1));  // d2, d3
     alignas(16) uint64_t d[4];
     _mm_store_si128(reinterpret_cast<__m128i*>(d), t01);
     _mm_store_si128(reinterpret_cast<__m128i*>(d + 2), t23);

@@ -69,7 +69,9 @@ TEST(L2DistanceTest, TwoNearestEqualsReference) {
           } else {
             EXPECT_NEAR(got.second, ref.second, 1e-4f * std::max(1.f, ref.second));
           }
-          if (use_signs) EXPECT_EQ(signs[ref.best_index], qs);
+          if (use_signs) {
+            EXPECT_EQ(signs[ref.best_index], qs);
+          }
         }
       }
     }

@@ -36,8 +36,8 @@ DescriptorBlock MakeDescriptorBlock(const FeatureSet& set, std::vector<int8_t>* 
 
 namespace {
 
-int CountOrb(const DescriptorBlock& query, const DescriptorBlock& db, double ratio,
-             int max_hamming, std::vector<cv::DMatch>* matches) {
+int CountOrb(const DescriptorBlock& query, const DescriptorBlock& db, double ratio, int max_hamming,
+             std::vector<cv::DMatch>* matches) {
   const uint32_t limit = max_hamming > 0 ? static_cast<uint32_t>(max_hamming) : UINT32_MAX;
   int good = 0;
   for (int i = 0; i < query.rows; ++i) {
@@ -53,10 +53,10 @@ int CountOrb(const DescriptorBlock& query, const DescriptorBlock& db, double rat
   return good;
 }
 
-int CountSurf(const DescriptorBlock& query, const DescriptorBlock& db, double ratio,
-              double max_l2, bool use_sign, std::vector<cv::DMatch>* matches) {
-  const float limit = max_l2 > 0 ? static_cast<float>(max_l2 * max_l2)
-                                 : std::numeric_limits<float>::infinity();
+int CountSurf(const DescriptorBlock& query, const DescriptorBlock& db, double ratio, double max_l2,
+              bool use_sign, std::vector<cv::DMatch>* matches) {
+  const float limit =
+      max_l2 > 0 ? static_cast<float>(max_l2 * max_l2) : std::numeric_limits<float>::infinity();
   const int dims = query.row_bytes / static_cast<int>(sizeof(float));
   const double ratio2 = ratio * ratio;  // compare squared distances
   const bool signs = use_sign && query.laplacian != nullptr && db.laplacian != nullptr;
@@ -65,9 +65,9 @@ int CountSurf(const DescriptorBlock& query, const DescriptorBlock& db, double ra
   int good = 0;
   for (int i = 0; i < query.rows; ++i) {
     const float* q = q_all + static_cast<size_t>(i) * dims;
-    const TwoNearestL2Result nn = TwoNearestL2(q, d_all, db.rows, dims,
-                                               signs ? db.laplacian : nullptr,
-                                               signs ? query.laplacian[i] : int8_t{0});
+    const TwoNearestL2Result nn =
+        TwoNearestL2(q, d_all, db.rows, dims, signs ? db.laplacian : nullptr,
+                     signs ? query.laplacian[i] : int8_t{0});
     const float best = nn.best;
     const float second = nn.second;
     const int best_index = nn.best_index;
@@ -93,9 +93,9 @@ int CountRatioMatches(const DescriptorBlock& query, const DescriptorBlock& db,
     PLACEDB_THROW_INVALID("descriptor widths differ: ", query.row_bytes, " vs ", db.row_bytes,
                           " bytes");
   }
-  if (query.type == FeatureType::kOrb) return CountOrb(query, db, options.ratio, options.max_hamming, matches);
-  return CountSurf(query, db, options.ratio, options.max_l2, options.use_laplacian_sign,
-                   matches);
+  if (query.type == FeatureType::kOrb)
+    return CountOrb(query, db, options.ratio, options.max_hamming, matches);
+  return CountSurf(query, db, options.ratio, options.max_l2, options.use_laplacian_sign, matches);
 }
 
 }  // namespace placedb

@@ -4,10 +4,9 @@
 #pragma once
 
 #include <cstdint>
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "placedb/feature/types.h"
 
@@ -18,7 +17,7 @@ struct DescriptorBlock {
   FeatureType type = FeatureType::kOrb;
   const uint8_t* data = nullptr;  // rows * row_bytes bytes
   int rows = 0;
-  int row_bytes = 0;              // ORB: 32; SURF: 4 * (64 or 128)
+  int row_bytes = 0;  // ORB: 32; SURF: 4 * (64 or 128)
   // SURF only, optional: sign of the Laplacian per row (+1/-1). Descriptors
   // of opposite signs are never matched (a blob on dark vs light background).
   const int8_t* laplacian = nullptr;

@@ -39,10 +39,10 @@ TEST(RatioMatcherTest, EqualsBfMatcherRatioTestOnRealImages) {
   }
   // The revisit (42 sees the place of 2) has far more matches than an
   // unrelated place (20).
-  const int same = CountRatioMatches(MakeDescriptorBlock(a, nullptr),
-                                     MakeDescriptorBlock(b, nullptr), options);
-  const int other = CountRatioMatches(MakeDescriptorBlock(a, nullptr),
-                                      MakeDescriptorBlock(c, nullptr), options);
+  const int same =
+      CountRatioMatches(MakeDescriptorBlock(a, nullptr), MakeDescriptorBlock(b, nullptr), options);
+  const int other =
+      CountRatioMatches(MakeDescriptorBlock(a, nullptr), MakeDescriptorBlock(c, nullptr), options);
   EXPECT_GT(same, 3 * other) << same << " vs " << other;
 }
 
@@ -101,8 +101,8 @@ TEST(RatioMatcherTest, DistanceLimitsRejectFarMatches) {
                                     MakeDescriptorBlock(b, nullptr), loose, &matches);
   int within = 0;
   for (const auto& m : matches) within += m.distance <= 30;
-  const int limited = CountRatioMatches(MakeDescriptorBlock(a, nullptr),
-                                        MakeDescriptorBlock(b, nullptr), strict);
+  const int limited =
+      CountRatioMatches(MakeDescriptorBlock(a, nullptr), MakeDescriptorBlock(b, nullptr), strict);
   EXPECT_EQ(limited, within);
   EXPECT_LT(limited, all);
   EXPECT_GT(limited, 0);

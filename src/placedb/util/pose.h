@@ -8,7 +8,7 @@
 namespace placedb {
 
 struct Pose {
-  Eigen::Vector3d translation = Eigen::Vector3d::Zero();  // metres
+  Eigen::Vector3d translation = Eigen::Vector3d::Zero();         // metres
   Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();  // unit quaternion
 };
 

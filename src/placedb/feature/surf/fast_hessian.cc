@@ -147,8 +147,8 @@ bool Solve3x3(const float a[3][3], const float b[3], float x[3]) {
 HessianFilter::HessianFilter(int octave, int layer) {
   const int base = 9 + 6 * layer;  // Odd side at octave 0.
   const int mult = 1 << octave;
-  const int w0 = base / 3;        // Lobe width at octave 0 (odd).
-  const int len0 = 2 * w0 - 1;    // Lobe length at octave 0.
+  const int w0 = base / 3;      // Lobe width at octave 0 (odd).
+  const int len0 = 2 * w0 - 1;  // Lobe length at octave 0.
   const int centre0 = (base - 1) / 2;
   size = base * mult;
   lobe = w0 * mult;
@@ -160,24 +160,21 @@ HessianFilter::HessianFilter(int octave, int layer) {
   inv_area_xy = 1.0f / static_cast<float>(lobe * lobe);
 }
 
-void HessianFilter::Responses(const IntegralImage& ii, int top, int left, float* dxx,
-                              float* dyy, float* dxy) const {
+void HessianFilter::Responses(const IntegralImage& ii, int top, int left, float* dxx, float* dyy,
+                              float* dxy) const {
   const int w = lobe;
-  const int32_t xx = ii.BoxSum(top + lobe_off, left, top + lobe_off + lobe_len, left + w) -
-                     2 * ii.BoxSum(top + lobe_off, left + w, top + lobe_off + lobe_len,
-                                   left + 2 * w) +
-                     ii.BoxSum(top + lobe_off, left + 2 * w, top + lobe_off + lobe_len,
-                               left + 3 * w);
-  const int32_t yy = ii.BoxSum(top, left + lobe_off, top + w, left + lobe_off + lobe_len) -
-                     2 * ii.BoxSum(top + w, left + lobe_off, top + 2 * w,
-                                   left + lobe_off + lobe_len) +
-                     ii.BoxSum(top + 2 * w, left + lobe_off, top + 3 * w,
-                               left + lobe_off + lobe_len);
-  const int32_t xy =
-      ii.BoxSum(top + dxy_lo, left + dxy_lo, top + dxy_lo + w, left + dxy_lo + w) -
-      ii.BoxSum(top + dxy_lo, left + dxy_hi, top + dxy_lo + w, left + dxy_hi + w) -
-      ii.BoxSum(top + dxy_hi, left + dxy_lo, top + dxy_hi + w, left + dxy_lo + w) +
-      ii.BoxSum(top + dxy_hi, left + dxy_hi, top + dxy_hi + w, left + dxy_hi + w);
+  const int32_t xx =
+      ii.BoxSum(top + lobe_off, left, top + lobe_off + lobe_len, left + w) -
+      2 * ii.BoxSum(top + lobe_off, left + w, top + lobe_off + lobe_len, left + 2 * w) +
+      ii.BoxSum(top + lobe_off, left + 2 * w, top + lobe_off + lobe_len, left + 3 * w);
+  const int32_t yy =
+      ii.BoxSum(top, left + lobe_off, top + w, left + lobe_off + lobe_len) -
+      2 * ii.BoxSum(top + w, left + lobe_off, top + 2 * w, left + lobe_off + lobe_len) +
+      ii.BoxSum(top + 2 * w, left + lobe_off, top + 3 * w, left + lobe_off + lobe_len);
+  const int32_t xy = ii.BoxSum(top + dxy_lo, left + dxy_lo, top + dxy_lo + w, left + dxy_lo + w) -
+                     ii.BoxSum(top + dxy_lo, left + dxy_hi, top + dxy_lo + w, left + dxy_hi + w) -
+                     ii.BoxSum(top + dxy_hi, left + dxy_lo, top + dxy_hi + w, left + dxy_lo + w) +
+                     ii.BoxSum(top + dxy_hi, left + dxy_hi, top + dxy_hi + w, left + dxy_hi + w);
   *dxx = static_cast<float>(xx) * inv_area_xx;
   *dyy = static_cast<float>(yy) * inv_area_xx;
   *dxy = static_cast<float>(xy) * inv_area_xy;
@@ -257,15 +254,12 @@ void DetectFastHessian(const IntegralImage& ii, double threshold, int num_octave
           hess[0][0] = d1[idx - 1] - 2 * v + d1[idx + 1];
           hess[1][1] = d1[up] - 2 * v + d1[dn];
           hess[2][2] = d0[idx] - 2 * v + d2[idx];
-          hess[0][1] = hess[1][0] =
-              0.25f * (d1[dn + 1] - d1[dn - 1] - d1[up + 1] + d1[up - 1]);
-          hess[0][2] = hess[2][0] =
-              0.25f * (d2[idx + 1] - d2[idx - 1] - d0[idx + 1] + d0[idx - 1]);
+          hess[0][1] = hess[1][0] = 0.25f * (d1[dn + 1] - d1[dn - 1] - d1[up + 1] + d1[up - 1]);
+          hess[0][2] = hess[2][0] = 0.25f * (d2[idx + 1] - d2[idx - 1] - d0[idx + 1] + d0[idx - 1]);
           hess[1][2] = hess[2][1] = 0.25f * (d2[dn] - d2[up] - d0[dn] + d0[up]);
           float off[3];
           if (!Solve3x3(hess, grad, off)) continue;
-          if (!(std::abs(off[0]) <= 0.5f && std::abs(off[1]) <= 0.5f &&
-                std::abs(off[2]) <= 0.5f)) {
+          if (!(std::abs(off[0]) <= 0.5f && std::abs(off[1]) <= 0.5f && std::abs(off[2]) <= 0.5f)) {
             continue;
           }
           // Sign of the Laplacian at the maximum.

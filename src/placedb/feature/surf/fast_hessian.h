@@ -4,9 +4,8 @@
 // interpolation of position and scale. Internal to the SURF module.
 #pragma once
 
-#include <vector>
-
 #include <opencv2/core.hpp>
+#include <vector>
 
 #include "placedb/feature/surf/integral_image.h"
 
@@ -22,11 +21,11 @@ struct HessianFilter {
   HessianFilter(int octave, int layer);
 
   int size = 0;
-  int lobe = 0;        // Width w of a Dxx lobe (= side of a Dxy lobe).
-  int lobe_len = 0;    // Length of a Dxx lobe (2w - 1 at octave 0, scaled).
-  int lobe_off = 0;    // Offset of the Dxx lobes across the filter.
-  int dxy_lo = 0;      // First pixel of the first Dxy lobe.
-  int dxy_hi = 0;      // First pixel of the second Dxy lobe.
+  int lobe = 0;           // Width w of a Dxx lobe (= side of a Dxy lobe).
+  int lobe_len = 0;       // Length of a Dxx lobe (2w - 1 at octave 0, scaled).
+  int lobe_off = 0;       // Offset of the Dxx lobes across the filter.
+  int dxy_lo = 0;         // First pixel of the first Dxy lobe.
+  int dxy_hi = 0;         // First pixel of the second Dxy lobe.
   float inv_area_xx = 0;  // 1 / (lobe * lobe_len).
   float inv_area_xy = 0;  // 1 / (lobe * lobe).
 

@@ -83,8 +83,8 @@ TEST(DetectFastHessianTest, FindsGaussianBlobAtItsCentreAndScale) {
           kps.begin(), kps.end(),
           [](const cv::KeyPoint& a, const cv::KeyPoint& b) { return a.response < b.response; });
       const double scale = 1.2 * best->size / 9.0;
-      std::printf("blob sigma %.1f %s: kp (%.2f, %.2f) size %.1f scale %.2f response %.0f\n",
-                  sigma, bright ? "bright" : "dark", best->pt.x, best->pt.y, best->size, scale,
+      std::printf("blob sigma %.1f %s: kp (%.2f, %.2f) size %.1f scale %.2f response %.0f\n", sigma,
+                  bright ? "bright" : "dark", best->pt.x, best->pt.y, best->size, scale,
                   best->response);
       EXPECT_NEAR(best->pt.x, cx, 0.1 * sigma + 0.5);
       EXPECT_NEAR(best->pt.y, cy, 0.1 * sigma + 0.5);

@@ -9,9 +9,8 @@
 #pragma once
 
 #include <cstdint>
-#include <vector>
-
 #include <opencv2/core.hpp>
+#include <vector>
 
 namespace placedb {
 namespace surf_internal {
@@ -21,8 +20,8 @@ class IntegralImage {
   // gray: CV_8UC1 (may be empty).
   explicit IntegralImage(const cv::Mat& gray);
 
-  int rows() const { return rows_; }  // Image rows (the table has rows + 1).
-  int cols() const { return cols_; }  // Image columns.
+  int rows() const { return rows_; }      // Image rows (the table has rows + 1).
+  int cols() const { return cols_; }      // Image columns.
   int stride() const { return stride_; }  // Elements per table row.
 
   const uint32_t* Row(int r) const { return data_.data() + static_cast<size_t>(r) * stride_; }

@@ -2,9 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <sstream>
-
 #include <opencv2/imgproc.hpp>
+#include <sstream>
 
 #include "placedb/feature/surf/fast_hessian.h"
 #include "placedb/feature/surf/integral_image.h"
@@ -38,9 +37,8 @@ cv::Mat ToGray(const cv::Mat& image) {
       return gray;
     }
     default:
-      PLACEDB_THROW_INVALID("SURF needs an 8-bit grey, BGR or BGRA image, got type ",
-                            image.type(), " (depth ", image.depth(), ", channels ",
-                            image.channels(), ")");
+      PLACEDB_THROW_INVALID("SURF needs an 8-bit grey, BGR or BGRA image, got type ", image.type(),
+                            " (depth ", image.depth(), ", channels ", image.channels(), ")");
   }
 }
 
@@ -78,8 +76,8 @@ void Describe(const IntegralImage& ii, const SurfOptions& options,
 }
 
 // The whole pipeline. mask: empty or CV_8UC1 of the image's size.
-void Run(const cv::Mat& image, const cv::Mat& mask, const SurfOptions& options,
-         bool use_provided, std::vector<cv::KeyPoint>* keypoints, cv::Mat* descriptors) {
+void Run(const cv::Mat& image, const cv::Mat& mask, const SurfOptions& options, bool use_provided,
+         std::vector<cv::KeyPoint>* keypoints, cv::Mat* descriptors) {
   PLACEDB_CHECK_OPTIONS(options);
   PLACEDB_CHECK(keypoints != nullptr);
   const cv::Mat gray = ToGray(image);

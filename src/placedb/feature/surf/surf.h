@@ -89,10 +89,10 @@ class SurfFeature2D : public cv::Feature2D {
                         std::vector<cv::KeyPoint>& keypoints, cv::OutputArray descriptors,
                         bool useProvidedKeypoints = false) override;
 
-  int descriptorSize() const override;          // 64 or 128.
-  int descriptorType() const override;          // CV_32F.
-  int defaultNorm() const override;             // cv::NORM_L2.
-  cv::String getDefaultName() const override;   // "placedb.SURF".
+  int descriptorSize() const override;         // 64 or 128.
+  int descriptorType() const override;         // CV_32F.
+  int defaultNorm() const override;            // cv::NORM_L2.
+  cv::String getDefaultName() const override;  // "placedb.SURF".
   bool empty() const override { return false; }
 
   const SurfOptions& options() const { return options_; }

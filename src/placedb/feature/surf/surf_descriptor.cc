@@ -15,16 +15,16 @@ namespace surf_internal {
 namespace {
 
 constexpr float kPi = 3.14159265358979f;
-constexpr int kOriRadius = 6;          // Orientation samples within 6s.
-constexpr float kOriSigma = 2.5f;      // Orientation Gaussian, in units of s.
-constexpr int kOriBins = 120;          // Angular bins of 3 degrees.
-constexpr int kOriWindowBins = 20;     // Sliding window: 60 degrees.
-constexpr int kMaxOriSamples = 112;    // 109 samples, padded to 8.
-constexpr int kPatch = 20;             // Descriptor window: 20 x 20 samples.
-constexpr int kSub = 5;                // Samples per sub-region side.
-constexpr int kNumSub = 16;            // 4 x 4 sub-regions.
+constexpr int kOriRadius = 6;        // Orientation samples within 6s.
+constexpr float kOriSigma = 2.5f;    // Orientation Gaussian, in units of s.
+constexpr int kOriBins = 120;        // Angular bins of 3 degrees.
+constexpr int kOriWindowBins = 20;   // Sliding window: 60 degrees.
+constexpr int kMaxOriSamples = 112;  // 109 samples, padded to 8.
+constexpr int kPatch = 20;           // Descriptor window: 20 x 20 samples.
+constexpr int kSub = 5;              // Samples per sub-region side.
+constexpr int kNumSub = 16;          // 4 x 4 sub-regions.
 constexpr int kNumSamples = kPatch * kPatch;
-constexpr float kDescSigma = 3.3f;     // Descriptor Gaussian, in units of s.
+constexpr float kDescSigma = 3.3f;  // Descriptor Gaussian, in units of s.
 
 inline int Round(float v) { return static_cast<int>(std::lrint(v)); }
 
@@ -36,7 +36,9 @@ struct HaarOffsets {
   ptrdiff_t row_half = 0;
   ptrdiff_t row_full = 0;
   HaarOffsets(int side, int table_stride)
-      : h(side), half(side / 2), stride(table_stride),
+      : h(side),
+        half(side / 2),
+        stride(table_stride),
         row_half(static_cast<ptrdiff_t>(side / 2) * table_stride),
         row_full(static_cast<ptrdiff_t>(side) * table_stride) {}
 };
@@ -61,8 +63,8 @@ inline void Haar(const uint32_t* p, const HaarOffsets& o, float* dx, float* dy) 
 // integral image is bilinear between its entries, so the responses are the
 // bilinear blend of the four integer-anchored responses around the point.
 // The box and its neighbour one pixel right/down must lie inside the image.
-inline void HaarSubPixel(const IntegralImage& ii, const HaarOffsets& o, float x, float y,
-                         float* dx, float* dy) {
+inline void HaarSubPixel(const IntegralImage& ii, const HaarOffsets& o, float x, float y, float* dx,
+                         float* dy) {
   const float lift = 0.5f * static_cast<float>(o.h - 1);
   const float fx0 = x - lift;
   const float fy0 = y - lift;
@@ -84,8 +86,8 @@ inline void HaarSubPixel(const IntegralImage& ii, const HaarOffsets& o, float x,
 
 // Near the border: the box is rounded to whole pixels and moved inside the
 // image (replicating the border responses); false when it cannot fit.
-inline bool HaarClamped(const IntegralImage& ii, const HaarOffsets& o, float x, float y,
-                        float* dx, float* dy) {
+inline bool HaarClamped(const IntegralImage& ii, const HaarOffsets& o, float x, float y, float* dx,
+                        float* dy) {
   const float lift = 0.5f * static_cast<float>(o.h - 1);
   const int max_x = ii.cols() - o.h;
   const int max_y = ii.rows() - o.h;
@@ -96,8 +98,8 @@ inline bool HaarClamped(const IntegralImage& ii, const HaarOffsets& o, float x, 
   return true;
 }
 
-void HaarBatchPlain(const IntegralImage& ii, const HaarOffsets& o, const float* xs,
-                    const float* ys, int n, float* dx, float* dy) {
+void HaarBatchPlain(const IntegralImage& ii, const HaarOffsets& o, const float* xs, const float* ys,
+                    int n, float* dx, float* dy) {
   for (int i = 0; i < n; ++i) HaarSubPixel(ii, o, xs[i], ys[i], &dx[i], &dy[i]);
 }
 
@@ -137,12 +139,12 @@ __attribute__((target("avx2,fma"))) void HaarBatchAvx2(const IntegralImage& ii,
       const __m256i a22 = PLACEDB_GATHER(rf + o.h);
 #undef PLACEDB_GATHER
       // gx = (a22 + a20 - 2 a21) - (a02 + a00 - 2 a01), gy likewise.
-      const __m256i gx = _mm256_sub_epi32(
-          _mm256_sub_epi32(_mm256_add_epi32(a22, a20), _mm256_slli_epi32(a21, 1)),
-          _mm256_sub_epi32(_mm256_add_epi32(a02, a00), _mm256_slli_epi32(a01, 1)));
-      const __m256i gy = _mm256_sub_epi32(
-          _mm256_sub_epi32(_mm256_add_epi32(a22, a02), _mm256_slli_epi32(a12, 1)),
-          _mm256_sub_epi32(_mm256_add_epi32(a20, a00), _mm256_slli_epi32(a10, 1)));
+      const __m256i gx =
+          _mm256_sub_epi32(_mm256_sub_epi32(_mm256_add_epi32(a22, a20), _mm256_slli_epi32(a21, 1)),
+                           _mm256_sub_epi32(_mm256_add_epi32(a02, a00), _mm256_slli_epi32(a01, 1)));
+      const __m256i gy =
+          _mm256_sub_epi32(_mm256_sub_epi32(_mm256_add_epi32(a22, a02), _mm256_slli_epi32(a12, 1)),
+                           _mm256_sub_epi32(_mm256_add_epi32(a20, a00), _mm256_slli_epi32(a10, 1)));
       rx[q] = _mm256_cvtepi32_ps(gx);
       ry[q] = _mm256_cvtepi32_ps(gy);
     }
@@ -162,8 +164,8 @@ __attribute__((target("avx2,fma"))) void HaarBatchAvx2(const IntegralImage& ii,
 
 std::atomic<bool> g_simd_enabled{true};
 
-using HaarBatchFn = void (*)(const IntegralImage&, const HaarOffsets&, const float*,
-                             const float*, int, float*, float*);
+using HaarBatchFn = void (*)(const IntegralImage&, const HaarOffsets&, const float*, const float*,
+                             int, float*, float*);
 
 HaarBatchFn ChooseHaarBatch() {
 #if defined(PLACEDB_SURF_X86)
@@ -180,7 +182,7 @@ void HaarBatch(const IntegralImage& ii, const HaarOffsets& o, const float* xs, c
                int n, float* dx, float* dy) {
   static const HaarBatchFn fast = ChooseHaarBatch();
   const bool small_table = g_simd_enabled.load(std::memory_order_relaxed) &&
-      static_cast<int64_t>(ii.rows() + 1) * ii.stride() < (int64_t{1} << 31);
+                           static_cast<int64_t>(ii.rows() + 1) * ii.stride() < (int64_t{1} << 31);
   (small_table ? fast : HaarBatchPlain)(ii, o, xs, ys, n, dx, dy);
 }
 
@@ -239,8 +241,8 @@ struct DescTable {
         const int idx = p * kNumSub + k;
         u[idx] = static_cast<float>(col) - 9.5f;
         v[idx] = static_cast<float>(row) - 9.5f;
-        weight[idx] = std::exp(-(u[idx] * u[idx] + v[idx] * v[idx]) /
-                               (2.f * kDescSigma * kDescSigma));
+        weight[idx] =
+            std::exp(-(u[idx] * u[idx] + v[idx] * v[idx]) / (2.f * kDescSigma * kDescSigma));
       }
     }
   }
@@ -268,9 +270,7 @@ inline bool FitsInside(const IntegralImage& ii, float x, float y, float radius, 
 
 bool SetSimdEnabled(bool enabled) { return g_simd_enabled.exchange(enabled); }
 
-const char* HaarKernelName() {
-  return ChooseHaarBatch() == HaarBatchPlain ? "plain" : "avx2+fma";
-}
+const char* HaarKernelName() { return ChooseHaarBatch() == HaarBatchPlain ? "plain" : "avx2+fma"; }
 
 float ComputeOrientation(const IntegralImage& ii, const cv::KeyPoint& kp) {
   if (ii.rows() == 0 || ii.cols() == 0) return 0.f;
@@ -327,8 +327,8 @@ float ComputeOrientation(const IntegralImage& ii, const cv::KeyPoint& kp) {
   return FastAtan2Deg(best_y, best_x);
 }
 
-void ComputeDescriptor(const IntegralImage& ii, const cv::KeyPoint& kp, bool upright,
-                       bool extended, float* out) {
+void ComputeDescriptor(const IntegralImage& ii, const cv::KeyPoint& kp, bool upright, bool extended,
+                       float* out) {
   const int dim = extended ? 128 : 64;
   std::fill(out, out + dim, 0.f);
   if (ii.rows() == 0 || ii.cols() == 0) return;

@@ -2,9 +2,8 @@
 // straight from the integral image). Internal to the SURF module.
 #pragma once
 
-#include <vector>
-
 #include <opencv2/core.hpp>
+#include <vector>
 
 #include "placedb/feature/surf/integral_image.h"
 
@@ -36,8 +35,8 @@ float ComputeOrientation(const IntegralImage& ii, const cv::KeyPoint& kp);
 // Gaussian weight sigma 3.3s; per sub-region sum dx, sum dy, sum |dx|,
 // sum |dy| (extended: sum dx, sum |dx| split by dy < 0 / dy >= 0 and sum dy,
 // sum |dy| split by dx < 0 / dx >= 0); unit L2 norm. out has 64 or 128 floats.
-void ComputeDescriptor(const IntegralImage& ii, const cv::KeyPoint& kp, bool upright,
-                       bool extended, float* out);
+void ComputeDescriptor(const IntegralImage& ii, const cv::KeyPoint& kp, bool upright, bool extended,
+                       float* out);
 
 }  // namespace surf_internal
 }  // namespace placedb

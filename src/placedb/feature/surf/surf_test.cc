@@ -8,14 +8,13 @@
 
 #include <gtest/gtest.h>
 
-#include "placedb/feature/surf/surf_descriptor.h"
-
 #include <cmath>
-#include <string>
-
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <string>
+
+#include "placedb/feature/surf/surf_descriptor.h"
 
 namespace placedb {
 namespace {
@@ -115,8 +114,8 @@ cv::Mat AddNoise(const cv::Mat& img, uint64_t seed) {
 cv::Mat Rotate(const cv::Mat& img, double degrees, cv::Mat* h) {
   const cv::Point2f centre((img.cols - 1) * 0.5f, (img.rows - 1) * 0.5f);
   cv::Mat a = cv::getRotationMatrix2D(centre, degrees, 1.0);
-  const cv::Rect2f box = cv::RotatedRect(centre, img.size(), static_cast<float>(degrees))
-                             .boundingRect2f();
+  const cv::Rect2f box =
+      cv::RotatedRect(centre, img.size(), static_cast<float>(degrees)).boundingRect2f();
   const int w = static_cast<int>(std::lround(box.width));
   const int hgt = static_cast<int>(std::lround(box.height));
   a.at<double>(0, 2) += (w - 1) * 0.5 - centre.x;
@@ -192,10 +191,10 @@ TEST(SurfQualityTest, BoxInSceneHasManyRansacInliers) {
   const cv::Mat h = cv::findHomography(p1, p2, cv::RANSAC, 3.0, inlier_mask, 2000, 0.999);
   ASSERT_FALSE(h.empty());
   const int inliers = cv::countNonZero(inlier_mask);
-  std::printf("[quality] SURF box->box_in_scene: keypoints %zu / %zu, ratio-kept %zu, "
-              "RANSAC inliers %d (%.3f)\n",
-              k1.size(), k2.size(), kept.size(), inliers,
-              static_cast<double>(inliers) / kept.size());
+  std::printf(
+      "[quality] SURF box->box_in_scene: keypoints %zu / %zu, ratio-kept %zu, "
+      "RANSAC inliers %d (%.3f)\n",
+      k1.size(), k2.size(), kept.size(), inliers, static_cast<double>(inliers) / kept.size());
   EXPECT_GE(inliers, 55);  // Measured 67 of 100 kept.
   EXPECT_GE(static_cast<double>(inliers) / kept.size(), 0.55);
   // The box's centre must land inside the scene.
@@ -303,12 +302,12 @@ TEST(SurfTest, InvalidOptionsThrow) {
 TEST(SurfTest, UnsupportedImageTypeThrows) {
   std::vector<cv::KeyPoint> kps;
   cv::Mat desc;
-  EXPECT_THROW(DetectAndComputeSurf(cv::Mat(50, 50, CV_32FC1, cv::Scalar(0)), SurfOptions(), &kps,
-                                    &desc),
-               std::invalid_argument);
-  EXPECT_THROW(DetectAndComputeSurf(cv::Mat(50, 50, CV_16UC1, cv::Scalar(0)), SurfOptions(), &kps,
-                                    &desc),
-               std::invalid_argument);
+  EXPECT_THROW(
+      DetectAndComputeSurf(cv::Mat(50, 50, CV_32FC1, cv::Scalar(0)), SurfOptions(), &kps, &desc),
+      std::invalid_argument);
+  EXPECT_THROW(
+      DetectAndComputeSurf(cv::Mat(50, 50, CV_16UC1, cv::Scalar(0)), SurfOptions(), &kps, &desc),
+      std::invalid_argument);
 }
 
 TEST(SurfTest, TinyEmptyAndFlatImagesGiveZeroKeypoints) {
@@ -504,9 +503,9 @@ TEST(SurfTest, ProvidedKeypointsAnywhereAreDescribed) {
   const cv::Mat img = LoadGray(kSample);
   // Corners, outside, huge and tiny keypoints: never removed, always finite.
   std::vector<cv::KeyPoint> kps = {
-      cv::KeyPoint(0, 0, 9),           cv::KeyPoint(img.cols - 1.f, img.rows - 1.f, 30),
-      cv::KeyPoint(-20, 5, 12),        cv::KeyPoint(200, 150, 2000),
-      cv::KeyPoint(200, 150, 0.5f),    cv::KeyPoint(img.cols + 50.f, img.rows + 50.f, 20),
+      cv::KeyPoint(0, 0, 9),        cv::KeyPoint(img.cols - 1.f, img.rows - 1.f, 30),
+      cv::KeyPoint(-20, 5, 12),     cv::KeyPoint(200, 150, 2000),
+      cv::KeyPoint(200, 150, 0.5f), cv::KeyPoint(img.cols + 50.f, img.rows + 50.f, 20),
   };
   cv::Mat desc;
   ComputeSurf(img, SurfOptions(), &kps, &desc);
