@@ -41,8 +41,10 @@ void ProgressBar::Draw() {
   const int filled = permille * kWidth / 1000;
   std::string bar(filled, '#');
   bar.append(kWidth - filled, '.');
-  std::fprintf(stderr, "\r%s [%s] %zu/%zu (%.0f%%)", label_.c_str(), bar.c_str(), done_, total_,
-               permille / 10.0);
+  const double elapsed = timer_.ElapsedSeconds();
+  const double eta = done_ > 0 && done_ < total_ ? elapsed * (total_ - done_) / done_ : 0.0;
+  std::fprintf(stderr, "\r%s [%s] %zu/%zu (%.0f%%) %.1fs, ETA %.1fs ", label_.c_str(), bar.c_str(),
+               done_, total_, permille / 10.0, elapsed, eta);
   std::fflush(stderr);
 }
 

@@ -7,6 +7,8 @@
 #include <mutex>
 #include <string>
 
+#include "placedb/util/timer.h"
+
 namespace placedb {
 
 class ProgressBar {
@@ -36,6 +38,7 @@ class ProgressBar {
   bool active_;
   bool finished_ = false;
   int last_permille_ = -1;
+  Timer timer_;
   std::mutex mutex_;
 };
 
