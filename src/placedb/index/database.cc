@@ -38,10 +38,8 @@ Database::Database(FeatureType type, int descriptor_bytes)
 }
 
 int Database::IndexOfId(int32_t id) const {
-  for (size_t i = 0; i < keyframes_.size(); ++i) {
-    if (keyframes_[i].id == id) return static_cast<int>(i);
-  }
-  return -1;
+  const auto it = index_of_id_.find(id);
+  return it == index_of_id_.end() ? -1 : it->second;
 }
 
 std::vector<cv::KeyPoint> Database::Keypoints(size_t index) const {
@@ -84,6 +82,7 @@ void Database::AddKeyframe(Keyframe keyframe, const FeatureSet& features) {
   for (const cv::KeyPoint& kp : features.keypoints) {
     laplacian_.push_back(kp.class_id < 0 ? -1 : 1);
   }
+  index_of_id_.emplace(keyframe.id, static_cast<int>(keyframes_.size()));
   keyframes_.push_back(std::move(keyframe));
 }
 
@@ -271,6 +270,9 @@ void Database::DecodeKeyframes(const std::string& bytes, const std::string& path
     }
     keyframes_[i].source = strings.substr(offset, lens.first);
     keyframes_[i].image_file = strings.substr(offset + lens.first, lens.second);
+    if (!index_of_id_.emplace(keyframes_[i].id, static_cast<int>(i)).second) {
+      PLACEDB_THROW_RUNTIME(path, ": keyframe id ", keyframes_[i].id, " appears twice");
+    }
   }
 }
 

@@ -14,6 +14,7 @@
 #include <opencv2/core.hpp>
 #include <optional>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "placedb/feature/types.h"
@@ -96,6 +97,7 @@ class Database {
   FeatureType feature_type_ = FeatureType::kOrb;
   int descriptor_bytes_ = 32;
   std::vector<Keyframe> keyframes_;
+  std::unordered_map<int32_t, int> index_of_id_;  // keyframe id -> index
   // Flat feature storage: keyframe i owns rows [offset_[i], offset_[i] + count_[i]).
   std::vector<uint64_t> feature_offset_;
   std::vector<uint32_t> feature_count_;
