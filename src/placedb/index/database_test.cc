@@ -279,6 +279,16 @@ TEST_F(DatabaseFileTest, WrongVersionInBinary) {
       LoadFn(), "format version " + std::to_string(version) + " is not supported"));
 }
 
+TEST_F(DatabaseFileTest, DuplicateKeyframeIdInFile) {
+  // Keyframe records start after the 48-byte header, 152 bytes each, id first.
+  std::string bad = bytes_;
+  std::memcpy(&bad[48 + 152], &bad[48], 4);  // record 1 gets record 0's id
+  const uint32_t crc = Crc32(bad.data(), bad.size() - 4);
+  std::memcpy(&bad[bad.size() - 4], &crc, 4);
+  WriteBytes(bin_, bad);
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "appears twice"));
+}
+
 TEST_F(DatabaseFileTest, WrongVersionInManifest) {
   nlohmann::json manifest = nlohmann::json::parse(ReadFileToString(Dir() + "/manifest.json"));
   manifest["format_version"] = kDatabaseFormatVersion + 1;
