@@ -3,6 +3,7 @@
 #include <cstring>
 #include <filesystem>
 #include <optional>
+#include <string_view>
 #include <unordered_set>
 
 #include "placedb/util/check.h"
@@ -52,7 +53,7 @@ DescriptorBlock Database::Descriptors(size_t index) const {
   block.type = feature_type_;
   block.rows = static_cast<int>(feature_count_[index]);
   block.row_bytes = descriptor_bytes_;
-  block.data = descriptors_.data() + feature_offset_[index] * descriptor_bytes_;
+  block.data = DescriptorData() + feature_offset_[index] * descriptor_bytes_;
   if (feature_type_ == FeatureType::kSurf) {
     block.laplacian = laplacian_.data() + feature_offset_[index];
   }
@@ -72,6 +73,12 @@ void Database::AddKeyframe(Keyframe keyframe, const FeatureSet& features) {
   PLACEDB_CHECK(features.descriptors.rows == static_cast<int>(features.keypoints.size()),
                 "one descriptor per keypoint expected");
   PLACEDB_CHECK(IndexOfId(keyframe.id) < 0, "duplicate keyframe id ", keyframe.id);
+  if (mapping_) {  // copy on write: the mapped file is read-only
+    descriptors_.assign(mapped_descriptors_,
+                        mapped_descriptors_ + keypoints_.size() * descriptor_bytes_);
+    mapping_.reset();
+    mapped_descriptors_ = nullptr;
+  }
   feature_offset_.push_back(keypoints_.size());
   feature_count_.push_back(static_cast<uint32_t>(features.keypoints.size()));
   keypoints_.insert(keypoints_.end(), features.keypoints.begin(), features.keypoints.end());
@@ -142,18 +149,20 @@ std::string Database::EncodeKeyframes() const {
     w.Put<int32_t>(kp.class_id);
   }
   w.Align(kDescriptorAlignment);
-  w.PutArray(descriptors_.data(), descriptors_.size());
+  w.PutArray(DescriptorData(), keypoints_.size() * descriptor_bytes_);
   w.PutBytes(strings.data(), strings.size());
   const uint32_t crc = Crc32(w.buffer().data(), w.size());
   w.Put<uint32_t>(crc);
   return w.buffer();
 }
 
-void Database::DecodeKeyframes(const std::string& bytes, const std::string& path) {
+void Database::DecodeKeyframes(std::shared_ptr<const MappedFile> file, const std::string& path) {
+  const std::string_view bytes(file->data(), file->size());
   if (!HostIsLittleEndian()) PLACEDB_THROW_RUNTIME("placedb databases need a little-endian host");
   // A file cut inside the magic (a prefix of it, or empty) is truncated, not
   // a different kind of file.
-  if (bytes.size() < sizeof(kMagic) && std::memcmp(bytes.data(), kMagic, bytes.size()) == 0) {
+  if (bytes.size() < sizeof(kMagic) &&
+      (bytes.empty() || std::memcmp(bytes.data(), kMagic, bytes.size()) == 0)) {
     PLACEDB_THROW_RUNTIME(path, ": file is truncated (", bytes.size(), " bytes)");
   }
   if (bytes.size() < sizeof(kMagic) || std::memcmp(bytes.data(), kMagic, sizeof(kMagic)) != 0) {
@@ -259,8 +268,11 @@ void Database::DecodeKeyframes(const std::string& bytes, const std::string& path
     laplacian_[i] = kp.class_id < 0 ? -1 : 1;
   }
   r.Align(kDescriptorAlignment);
-  descriptors_.resize(num_features * row_bytes);
-  r.GetArray(descriptors_.data(), descriptors_.size());
+  // The descriptors stay where they are, in the mapping (32-byte aligned in
+  // the file, and mmap returns page-aligned memory).
+  mapped_descriptors_ = reinterpret_cast<const uint8_t*>(file->data()) + r.position();
+  r.Skip(num_features * row_bytes);
+  mapping_ = std::move(file);
   std::string strings(string_bytes, '\0');
   r.GetBytes(strings.data(), strings.size());
   for (uint64_t i = 0; i < num_keyframes; ++i) {
@@ -337,7 +349,7 @@ Database Database::Load(const std::string& dir) {
     PLACEDB_THROW_RUNTIME("database ", dir, " is incomplete: ", kKeyframesFile, " is missing");
   }
   Database db;
-  db.DecodeKeyframes(ReadFileToString(bin_path), bin_path);
+  db.DecodeKeyframes(MappedFile::Open(bin_path), bin_path);
   if (manifest_type != FeatureTypeName(db.feature_type_)) {
     PLACEDB_THROW_RUNTIME(dir, ": manifest says '", manifest_type, "' features but ",
                           kKeyframesFile, " holds '", FeatureTypeName(db.feature_type_),

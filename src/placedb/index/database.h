@@ -10,6 +10,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <optional>
@@ -19,6 +20,7 @@
 
 #include "placedb/feature/types.h"
 #include "placedb/match/ratio_matcher.h"
+#include "placedb/util/mapped_file.h"
 #include "placedb/util/pose.h"
 
 namespace placedb {
@@ -92,7 +94,11 @@ class Database {
 
  private:
   std::string EncodeKeyframes() const;
-  void DecodeKeyframes(const std::string& bytes, const std::string& path);
+  void DecodeKeyframes(std::shared_ptr<const MappedFile> file, const std::string& path);
+  // Start of the flat descriptor array: owned, or inside the mapped file.
+  const uint8_t* DescriptorData() const {
+    return mapping_ ? mapped_descriptors_ : descriptors_.data();
+  }
 
   FeatureType feature_type_ = FeatureType::kOrb;
   int descriptor_bytes_ = 32;
@@ -102,8 +108,13 @@ class Database {
   std::vector<uint64_t> feature_offset_;
   std::vector<uint32_t> feature_count_;
   std::vector<cv::KeyPoint> keypoints_;
-  std::vector<uint8_t> descriptors_;  // num_features * descriptor_bytes
-  std::vector<int8_t> laplacian_;     // SURF: sign of the Laplacian per feature
+  // num_features * descriptor_bytes. A loaded database uses the descriptors
+  // in place in the memory-mapped keyframes.bin instead (mapping_ set); the
+  // first AddKeyframe copies them here.
+  std::vector<uint8_t> descriptors_;
+  std::shared_ptr<const MappedFile> mapping_;
+  const uint8_t* mapped_descriptors_ = nullptr;
+  std::vector<int8_t> laplacian_;  // SURF: sign of the Laplacian per feature
   nlohmann::json info_ = nlohmann::json::object();
 };
 

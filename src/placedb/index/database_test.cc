@@ -187,6 +187,31 @@ TEST(DatabaseTest, RoundTripSurf) {
   EXPECT_GT(negative, 0);
 }
 
+TEST(DatabaseTest, LoadedDatabaseGrowsAndOutlivesItsFiles) {
+  // A loaded database uses its descriptors in place in the mapped file; the
+  // first added keyframe copies them, and a rebuild replacing the files on
+  // disk does not disturb a database already open.
+  TempDir tmp;
+  const Database three = MakeDatabase(ExtractorOptions(), 3, true);
+  three.Save(tmp.Path());
+  Database loaded = Database::Load(tmp.Path());
+  MakeDatabase(ExtractorOptions(), 1, false).Save(tmp.Path());  // files replaced
+  ExpectDatabasesEqual(three, loaded);
+
+  const Database four = MakeDatabase(ExtractorOptions(), 4, true);
+  FeatureSet extra;
+  extra.type = FeatureType::kOrb;
+  extra.keypoints = four.Keypoints(3);
+  const DescriptorBlock block = four.Descriptors(3);
+  extra.descriptors = cv::Mat(block.rows, 32, CV_8U, const_cast<uint8_t*>(block.data)).clone();
+  loaded.AddKeyframe(four.keyframe(3), extra);
+  loaded.info() = four.info();
+  ExpectDatabasesEqual(four, loaded);
+  TempDir again;
+  loaded.Save(again.Path());
+  ExpectDatabasesEqual(four, Database::Load(again.Path()));
+}
+
 TEST(DatabaseTest, EmptyDatabaseRoundTrip) {
   TempDir tmp;
   Database db(FeatureType::kOrb, 32);

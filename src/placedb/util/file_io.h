@@ -90,6 +90,11 @@ class BinaryReader {
     pos_ += bytes;
   }
   void GetBytes(void* out, size_t size) { GetArray(static_cast<char*>(out), size); }
+  // Moves past `bytes` bytes (bounds-checked like a read).
+  void Skip(size_t bytes) {
+    Need(bytes);
+    pos_ += bytes;
+  }
   void Align(size_t alignment) {
     const size_t pad = (alignment - pos_ % alignment) % alignment;
     Need(pad);

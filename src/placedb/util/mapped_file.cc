@@ -1,0 +1,44 @@
+#include "placedb/util/mapped_file.h"
+
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+
+#include "placedb/util/check.h"
+
+namespace placedb {
+
+std::shared_ptr<const MappedFile> MappedFile::Open(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) PLACEDB_THROW_RUNTIME("cannot open ", path, ": ", std::strerror(errno));
+  struct stat st;
+  if (::fstat(fd, &st) != 0) {
+    const int err = errno;
+    ::close(fd);
+    PLACEDB_THROW_RUNTIME("cannot stat ", path, ": ", std::strerror(err));
+  }
+  std::shared_ptr<MappedFile> file(new MappedFile());
+  file->size_ = static_cast<size_t>(st.st_size);
+  if (file->size_ > 0) {
+    void* p = ::mmap(nullptr, file->size_, PROT_READ, MAP_PRIVATE, fd, 0);
+    if (p == MAP_FAILED) {
+      const int err = errno;
+      ::close(fd);
+      PLACEDB_THROW_RUNTIME("cannot map ", path, ": ", std::strerror(err));
+    }
+    file->data_ = static_cast<const char*>(p);
+    file->mapped_ = true;
+  }
+  ::close(fd);  // the mapping keeps the file's pages
+  return file;
+}
+
+MappedFile::~MappedFile() {
+  if (mapped_) ::munmap(const_cast<char*>(data_), size_);
+}
+
+}  // namespace placedb

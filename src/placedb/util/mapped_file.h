@@ -1,0 +1,31 @@
+// A read-only memory mapping of a whole file, so flat arrays in it can be used
+// in place, without reading and copying them.
+#pragma once
+
+#include <cstddef>
+#include <memory>
+#include <string>
+
+namespace placedb {
+
+class MappedFile {
+ public:
+  // Maps `path` read-only. Throws std::runtime_error naming the path when it
+  // cannot be opened or mapped. An empty file gives an empty mapping.
+  static std::shared_ptr<const MappedFile> Open(const std::string& path);
+
+  ~MappedFile();
+  MappedFile(const MappedFile&) = delete;
+  MappedFile& operator=(const MappedFile&) = delete;
+
+  const char* data() const { return data_; }
+  size_t size() const { return size_; }
+
+ private:
+  MappedFile() = default;
+  const char* data_ = nullptr;
+  size_t size_ = 0;
+  bool mapped_ = false;
+};
+
+}  // namespace placedb
