@@ -90,16 +90,7 @@ void ExpectDatabasesEqual(const Database& a, const Database& b) {
   for (size_t i = 0; i < a.size(); ++i) {
     ExpectKeyframesEqual(a.keyframe(i), b.keyframe(i));
     ASSERT_EQ(a.FeatureCount(i), b.FeatureCount(i));
-    const auto ka = a.Keypoints(i), kb = b.Keypoints(i);
-    ASSERT_EQ(ka.size(), kb.size());
-    for (size_t j = 0; j < ka.size(); ++j) {
-      EXPECT_EQ(ka[j].pt, kb[j].pt);
-      EXPECT_EQ(ka[j].size, kb[j].size);
-      EXPECT_EQ(ka[j].angle, kb[j].angle);
-      EXPECT_EQ(ka[j].response, kb[j].response);
-      EXPECT_EQ(ka[j].octave, kb[j].octave);
-      EXPECT_EQ(ka[j].class_id, kb[j].class_id);
-    }
+    testing_util::ExpectSameKeypoints(a.Keypoints(i), b.Keypoints(i));
     const DescriptorBlock da = a.Descriptors(i), dbk = b.Descriptors(i);
     EXPECT_EQ(da.type, dbk.type);
     ASSERT_EQ(da.rows, dbk.rows);

@@ -18,8 +18,6 @@ struct ByteTable {
 };
 const ByteTable kTable;
 
-inline void Update(TwoNearest& out, uint32_t d, int index) { out.Update(d, index); }
-
 #if PLACEDB_X86
 __attribute__((target("popcnt"))) uint32_t HammingPopcnt(const uint8_t* a, const uint8_t* b,
                                                          int bytes) {
@@ -48,12 +46,12 @@ __attribute__((target("popcnt"))) TwoNearest TwoNearestPopcnt(const uint8_t* que
       const uint32_t dist =
           static_cast<uint32_t>(_mm_popcnt_u64(q[0] ^ d[0]) + _mm_popcnt_u64(q[1] ^ d[1]) +
                                 _mm_popcnt_u64(q[2] ^ d[2]) + _mm_popcnt_u64(q[3] ^ d[3]));
-      Update(out, dist, j);
+      out.Update(dist, j);
     }
     return out;
   }
   for (int j = 0; j < count; ++j) {
-    Update(out, HammingPopcnt(query, db + static_cast<size_t>(j) * bytes, bytes), j);
+    out.Update(HammingPopcnt(query, db + static_cast<size_t>(j) * bytes, bytes), j);
   }
   return out;
 }
@@ -110,13 +108,13 @@ __attribute__((target("avx2,popcnt"))) TwoNearest TwoNearestAvx2(const uint8_t* 
     alignas(16) uint64_t d[4];
     _mm_store_si128(reinterpret_cast<__m128i*>(d), t01);
     _mm_store_si128(reinterpret_cast<__m128i*>(d + 2), t23);
-    Update(out, static_cast<uint32_t>(d[0]), j);
-    Update(out, static_cast<uint32_t>(d[1]), j + 1);
-    Update(out, static_cast<uint32_t>(d[2]), j + 2);
-    Update(out, static_cast<uint32_t>(d[3]), j + 3);
+    out.Update(static_cast<uint32_t>(d[0]), j);
+    out.Update(static_cast<uint32_t>(d[1]), j + 1);
+    out.Update(static_cast<uint32_t>(d[2]), j + 2);
+    out.Update(static_cast<uint32_t>(d[3]), j + 3);
   }
   for (; j < count; ++j) {
-    Update(out, HammingPopcnt(query, db + static_cast<size_t>(j) * 32, 32), j);
+    out.Update(HammingPopcnt(query, db + static_cast<size_t>(j) * 32, 32), j);
   }
   return out;
 }
@@ -154,7 +152,7 @@ TwoNearest TwoNearestHammingReference(const uint8_t* query, const uint8_t* db, i
                                       int bytes) {
   TwoNearest out;
   for (int j = 0; j < count; ++j) {
-    Update(out, HammingReference(query, db + static_cast<size_t>(j) * bytes, bytes), j);
+    out.Update(HammingReference(query, db + static_cast<size_t>(j) * bytes, bytes), j);
   }
   return out;
 }

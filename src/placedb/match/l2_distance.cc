@@ -69,9 +69,17 @@ float L2SquaredSse2(const float* a, const float* b, int n) {
 
 #endif  // PLACEDB_L2_X86
 
-inline void UpdateTwo(TwoNearestL2Result& out, float d, int index) { out.Update(d, index); }
-
-TwoNearestL2Result EmptyResult() { return TwoNearestL2Result(); }
+// Scans every candidate with one distance kernel (reference or SIMD).
+TwoNearestL2Result TwoNearestWithKernel(L2Kernel kernel, const float* query, const float* db,
+                                        int count, int dims, const int8_t* signs,
+                                        int8_t query_sign) {
+  TwoNearestL2Result out;
+  for (int j = 0; j < count; ++j) {
+    if (signs != nullptr && signs[j] != query_sign) continue;
+    out.Update(kernel(query, db + static_cast<size_t>(j) * dims, dims), j);
+  }
+  return out;
+}
 
 #if defined(PLACEDB_L2_X86)
 
@@ -90,7 +98,7 @@ __attribute__((target("avx2,fma"))) TwoNearestL2Result TwoNearestAvx2Fixed(
   constexpr int kDims = kBlocks * 8;
   __m256 q[kBlocks];
   for (int b = 0; b < kBlocks; ++b) q[b] = _mm256_loadu_ps(query + 8 * b);
-  TwoNearestL2Result out = EmptyResult();
+  TwoNearestL2Result out;
   for (int j = 0; j < count; ++j) {
     if (signs != nullptr && signs[j] != query_sign) continue;
     const float* row = db + static_cast<size_t>(j) * kDims;
@@ -102,7 +110,7 @@ __attribute__((target("avx2,fma"))) TwoNearestL2Result TwoNearestAvx2Fixed(
       acc0 = _mm256_fmadd_ps(d0, d0, acc0);
       acc1 = _mm256_fmadd_ps(d1, d1, acc1);
     }
-    UpdateTwo(out, HorizontalSum(_mm256_add_ps(acc0, acc1)), j);
+    out.Update(HorizontalSum(_mm256_add_ps(acc0, acc1)), j);
   }
   return out;
 }
@@ -146,12 +154,7 @@ float L2Squared(const float* a, const float* b, int n) { return GetDispatch().ke
 
 TwoNearestL2Result TwoNearestL2Reference(const float* query, const float* db, int count, int dims,
                                          const int8_t* signs, int8_t query_sign) {
-  TwoNearestL2Result out = EmptyResult();
-  for (int j = 0; j < count; ++j) {
-    if (signs != nullptr && signs[j] != query_sign) continue;
-    UpdateTwo(out, L2SquaredReference(query, db + static_cast<size_t>(j) * dims, dims), j);
-  }
-  return out;
+  return TwoNearestWithKernel(L2SquaredReference, query, db, count, dims, signs, query_sign);
 }
 
 TwoNearestL2Result TwoNearestL2(const float* query, const float* db, int count, int dims,
@@ -162,13 +165,7 @@ TwoNearestL2Result TwoNearestL2(const float* query, const float* db, int count, 
     if (dims == 128) return TwoNearestAvx2Fixed<16>(query, db, count, signs, query_sign);
   }
 #endif
-  const L2Kernel kernel = GetDispatch().kernel;
-  TwoNearestL2Result out = EmptyResult();
-  for (int j = 0; j < count; ++j) {
-    if (signs != nullptr && signs[j] != query_sign) continue;
-    UpdateTwo(out, kernel(query, db + static_cast<size_t>(j) * dims, dims), j);
-  }
-  return out;
+  return TwoNearestWithKernel(GetDispatch().kernel, query, db, count, dims, signs, query_sign);
 }
 
 const char* L2SquaredKernelName() { return GetDispatch().name; }

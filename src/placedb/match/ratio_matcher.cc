@@ -68,13 +68,10 @@ int CountSurf(const DescriptorBlock& query, const DescriptorBlock& db, double ra
     const TwoNearestL2Result nn =
         TwoNearestL2(q, d_all, db.rows, dims, signs ? db.laplacian : nullptr,
                      signs ? query.laplacian[i] : int8_t{0});
-    const float best = nn.best;
-    const float second = nn.second;
-    const int best_index = nn.best_index;
-    if (best_index < 0 || best > limit) continue;
-    if (std::isinf(second) || best < ratio2 * second) {
+    if (nn.best_index < 0 || nn.best > limit) continue;
+    if (std::isinf(nn.second) || nn.best < ratio2 * nn.second) {
       ++good;
-      if (matches) matches->emplace_back(i, best_index, std::sqrt(best));
+      if (matches) matches->emplace_back(i, nn.best_index, std::sqrt(nn.best));
     }
   }
   return good;

@@ -10,8 +10,10 @@
 #include <filesystem>
 #include <fstream>
 #include <initializer_list>
+#include <opencv2/core.hpp>
 #include <string>
 #include <utility>
+#include <vector>
 
 namespace placedb {
 namespace testing_util {
@@ -69,6 +71,20 @@ template <typename Exception, typename Fn>
     return ::testing::AssertionFailure() << "wrong exception type: " << e.what();
   }
   return ::testing::AssertionFailure() << "nothing thrown";
+}
+
+// Every field of two keypoint lists is equal (determinism, round trips).
+inline void ExpectSameKeypoints(const std::vector<cv::KeyPoint>& a,
+                                const std::vector<cv::KeyPoint>& b) {
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t i = 0; i < a.size(); ++i) {
+    EXPECT_EQ(a[i].pt, b[i].pt) << "keypoint " << i;
+    EXPECT_EQ(a[i].size, b[i].size) << "keypoint " << i;
+    EXPECT_EQ(a[i].angle, b[i].angle) << "keypoint " << i;
+    EXPECT_EQ(a[i].response, b[i].response) << "keypoint " << i;
+    EXPECT_EQ(a[i].octave, b[i].octave) << "keypoint " << i;
+    EXPECT_EQ(a[i].class_id, b[i].class_id) << "keypoint " << i;
+  }
 }
 
 #ifdef PLACEDB_DATA_DIR

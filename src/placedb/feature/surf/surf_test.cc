@@ -15,6 +15,7 @@
 #include <string>
 
 #include "placedb/feature/surf/surf_descriptor.h"
+#include "placedb/util/testing.h"
 
 namespace placedb {
 namespace {
@@ -422,14 +423,7 @@ TEST(SurfTest, Deterministic) {
   cv::Mat d1, d2;
   DetectAndComputeSurf(img, SurfOptions(), &k1, &d1);
   DetectAndComputeSurf(img, SurfOptions(), &k2, &d2);
-  ASSERT_EQ(k1.size(), k2.size());
-  for (size_t i = 0; i < k1.size(); ++i) {
-    EXPECT_EQ(k1[i].pt, k2[i].pt);
-    EXPECT_EQ(k1[i].size, k2[i].size);
-    EXPECT_EQ(k1[i].angle, k2[i].angle);
-    EXPECT_EQ(k1[i].response, k2[i].response);
-    EXPECT_EQ(k1[i].class_id, k2[i].class_id);
-  }
+  testing_util::ExpectSameKeypoints(k1, k2);
   EXPECT_EQ(cv::norm(d1, d2, cv::NORM_INF), 0.0);
 }
 
