@@ -1,13 +1,23 @@
 # placedb_add_library(NAME name SRCS a.cc b.cc DEPS lib1 lib2)
-#   One static library per module folder. Include paths are rooted at src/ so
-#   every header is included as "placedb/<module>/<file>.h".
+#   One static library per module folder, exported and installed. Include
+#   paths are rooted at src/ so every header is included as
+#   "placedb/<module>/<file>.h", in the build tree and once installed.
+set(PLACEDB_LIBRARIES "" CACHE INTERNAL "the module libraries, in build order")
 function(placedb_add_library)
   cmake_parse_arguments(ARG "" "NAME" "SRCS;DEPS" ${ARGN})
   add_library(${ARG_NAME} STATIC ${ARG_SRCS})
-  target_include_directories(${ARG_NAME} PUBLIC ${PROJECT_SOURCE_DIR}/src)
+  target_include_directories(${ARG_NAME} PUBLIC
+    $<BUILD_INTERFACE:${PROJECT_SOURCE_DIR}/src>
+    $<BUILD_INTERFACE:${PROJECT_BINARY_DIR}/include>
+    $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
   target_link_libraries(${ARG_NAME} PUBLIC ${ARG_DEPS})
   target_compile_options(${ARG_NAME} PRIVATE -Wall -Wextra -Wno-unused-parameter)
   set_target_properties(${ARG_NAME} PROPERTIES POSITION_INDEPENDENT_CODE ON)
+  add_library(placedb::${ARG_NAME} ALIAS ${ARG_NAME})
+  install(TARGETS ${ARG_NAME} EXPORT placedbTargets
+    ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
+    LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
+  set(PLACEDB_LIBRARIES ${PLACEDB_LIBRARIES} ${ARG_NAME} CACHE INTERNAL "")
 endfunction()
 
 # placedb_add_test(NAME name SRCS a_test.cc DEPS lib1 [LABELS l])

@@ -2,8 +2,10 @@
 // ground-truth pose. Produced by the dataset readers, consumed by build/query.
 #pragma once
 
+#include <opencv2/core.hpp>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "placedb/util/pose.h"
 
@@ -14,6 +16,16 @@ struct Frame {
   double timestamp = -1.0;   // seconds; -1 when unknown
   std::string image_path;    // absolute or as given, usable with cv::imread
   std::optional<Pose> pose;  // ground-truth camera pose (camera-to-world), when known
+  // When not empty, the image is brought to this size as it is read: a
+  // smaller camera, simulated (area interpolation down, bilinear up).
+  cv::Size resize_to;
 };
+
+// Reads a frame's image as 8-bit BGR (resized to frame.resize_to when set);
+// an empty Mat when it cannot be read or decoded.
+cv::Mat LoadFrameImage(const Frame& frame);
+
+// Sets resize_to on every frame.
+void ResizeFramesTo(std::vector<Frame>* frames, cv::Size size);
 
 }  // namespace placedb

@@ -1,5 +1,7 @@
 #include "placedb/eval/baseline.h"
 
+#include <algorithm>
+#include <map>
 #include <opencv2/features2d.hpp>
 
 #include "placedb/util/check.h"
@@ -11,11 +13,16 @@ std::vector<ScoredKeyframe> BfMatcherQuery(const Database& db, const FeatureSet&
   PLACEDB_CHECK(query.type == db.feature_type(), "query and database feature types differ");
   const bool orb = db.feature_type() == FeatureType::kOrb;
   cv::BFMatcher matcher(orb ? cv::NORM_HAMMING : cv::NORM_L2);
+  const MatchOptions& mo = options.match;
   // The same distance limit as ours, so both rank the same matches.
-  const double limit = orb ? (options.match.max_hamming > 0 ? options.match.max_hamming : 1e30)
-                           : (options.match.max_l2 > 0 ? options.match.max_l2 : 1e30);
+  const double limit =
+      orb ? (mo.max_hamming > 0 ? mo.max_hamming : 1e30) : (mo.max_l2 > 0 ? mo.max_l2 : 1e30);
+  auto passes = [&](const std::vector<cv::DMatch>& m) {
+    if (m.empty() || m[0].distance > limit) return false;
+    return m.size() == 1 || m[0].distance < mo.ratio * m[1].distance;
+  };
   std::vector<ScoredKeyframe> scored;
-  std::vector<std::vector<cv::DMatch>> knn;
+  std::vector<std::vector<cv::DMatch>> knn, back;
   for (size_t i = 0; i < db.size(); ++i) {
     const DescriptorBlock block = db.Descriptors(i);
     if (block.rows == 0 || query.descriptors.empty()) continue;
@@ -24,15 +31,32 @@ std::vector<ScoredKeyframe> BfMatcherQuery(const Database& db, const FeatureSet&
                         orb ? CV_8U : CV_32F, const_cast<uint8_t*>(block.data));
     knn.clear();
     matcher.knnMatch(query.descriptors, train, knn, 2);
-    int good = 0;
+    // train index -> its closest passing query match.
+    std::map<int, cv::DMatch> by_train;
+    std::vector<cv::DMatch> good;
     for (const auto& m : knn) {
-      if (m.empty() || m[0].distance > limit) continue;
-      if (m.size() == 1 || m[0].distance < options.match.ratio * m[1].distance) {
-        ++good;
+      if (!passes(m)) continue;
+      if (!mo.one_to_one && !mo.cross_check) {
+        good.push_back(m[0]);
+        continue;
       }
+      auto [it, inserted] = by_train.emplace(m[0].trainIdx, m[0]);
+      if (!inserted &&
+          (m[0].distance < it->second.distance ||
+           (m[0].distance == it->second.distance && m[0].queryIdx < it->second.queryIdx)))
+        it->second = m[0];
     }
-    if (good >= options.min_matches)
-      scored.push_back({db.keyframe(i).id, static_cast<double>(good)});
+    for (const auto& [t, m] : by_train) {
+      if (mo.cross_check) {
+        back.clear();
+        matcher.knnMatch(train.row(t), query.descriptors, back, 2);
+        if (back.empty() || !passes(back[0]) || back[0][0].trainIdx != m.queryIdx) continue;
+      }
+      good.push_back(m);
+    }
+    const int count = static_cast<int>(good.size());
+    if (count >= options.min_matches)
+      scored.push_back({db.keyframe(i).id, static_cast<double>(count)});
   }
   return TopK(std::move(scored), options.top_k);
 }

@@ -1,6 +1,8 @@
 // The paper's matching, as a baseline to measure against: for every keyframe,
 // OpenCV's BFMatcher knnMatch (k = 2) of the query's descriptors against the
-// keyframe's, Lowe's ratio test, keyframes ranked by good matches.
+// keyframe's, Lowe's ratio test, keyframes ranked by matches. The same match
+// rules as placedb's match stage (distance limit, one-to-one, cross-check),
+// so both rank the same keyframes and only the speed differs.
 #pragma once
 
 #include <vector>
@@ -8,12 +10,14 @@
 #include "placedb/feature/types.h"
 #include "placedb/index/database.h"
 #include "placedb/index/query.h"
+#include "placedb/index/ranking.h"
 
 namespace placedb {
 
-// Same ranking rules as QueryFeatures (ratio, distance limit, min_matches,
-// top_k, ties by id), computed with cv::BFMatcher on the database's stored
-// descriptors. (For SURF it does not use the Laplacian sign.)
+// Keyframes ranked by matches (ties: lower id), the top options.top_k, with
+// at least options.min_matches each; computed with cv::BFMatcher on the
+// database's stored descriptors. (It knows no Laplacian sign: compare SURF
+// with match.use_laplacian_sign off.)
 std::vector<ScoredKeyframe> BfMatcherQuery(const Database& db, const FeatureSet& query,
                                            const QueryOptions& options);
 

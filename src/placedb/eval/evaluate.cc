@@ -5,21 +5,21 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <limits>
 #include <opencv2/imgcodecs.hpp>
 #include <random>
 
 #include "placedb/util/check.h"
 #include "placedb/util/file_io.h"
+#include "placedb/util/options.h"
 #include "placedb/util/progress.h"
-#include "placedb/util/thread_pool.h"
 
 namespace placedb {
 namespace fs = std::filesystem;
 
 std::string EvalOptions::Check() const {
-  if (!all && num_queries < 1) return "num_queries must be >= 1";
-  if (threads < 1) return "threads must be >= 1";
-  return "";
+  if (all) return "";
+  return CheckRange("num_queries", num_queries, 1, 1000000);
 }
 
 std::vector<Frame> SampleFrames(std::vector<Frame> frames, int n, uint64_t seed) {
@@ -48,8 +48,7 @@ std::vector<Frame> SelectQueries(const std::vector<Frame>& frames, const GroundT
   return SampleFrames(std::move(candidates), options.all ? 0 : options.num_queries, options.seed);
 }
 
-EvalReport Evaluate(const Database& db, const std::string& db_dir,
-                    const FeatureExtractor& extractor, const std::vector<Frame>& query_frames,
+EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_frames,
                     const GroundTruth& truth, const EvalOptions& eval_options,
                     const QueryOptions& query_options) {
   PLACEDB_CHECK_OPTIONS(eval_options);
@@ -65,16 +64,17 @@ EvalReport Evaluate(const Database& db, const std::string& db_dir,
   }
   EvalReport report;
   report.truth = truth.Describe();
-  std::unique_ptr<ThreadPool> pool;
-  if (eval_options.threads > 1) pool = std::make_unique<ThreadPool>(eval_options.threads);
+  report.min_score = query_options.min_score;
+  report.verified = query_options.verify.enabled;
   ProgressBar progress("evaluating", queries.size(), eval_options.progress);
-  std::vector<double> latencies, match_times;
+  std::vector<double> latency, extract, match, verify;
+  std::vector<ScoredAnswer> answers;
   for (const Frame& q : queries) {
     QueryRecord rec;
     rec.query_id = q.id;
     rec.image = q.image_path;
-    rec.has_true_match_in_db = truth.AnyCorrectIn(q, db);
-    const cv::Mat image = cv::imread(q.image_path, cv::IMREAD_COLOR);
+    rec.has_true_match_in_db = truth.AnyCorrectIn(q, db.database());
+    const cv::Mat image = LoadFrameImage(q);
     if (image.empty()) {
       spdlog::warn("skipped unreadable query image {} (frame {})", q.image_path, q.id);
       rec.unreadable = true;
@@ -83,25 +83,28 @@ EvalReport Evaluate(const Database& db, const std::string& db_dir,
       progress.Advance();
       continue;
     }
-    const QueryResult result = QueryImage(db, extractor, image, query_options, pool.get());
-    rec.ranked = result.ranked;
-    rec.num_features = result.num_query_features;
-    rec.latency_ms = result.total_ms;
-    rec.extract_ms = result.extract_ms;
-    rec.match_ms = result.match_ms;
-    for (size_t r = 0; r < rec.ranked.size() && r < 5; ++r) {
-      const int index = db.IndexOfId(rec.ranked[r].keyframe_id);
-      if (index >= 0 && truth.IsCorrect(q, db.keyframe(index))) {
+    rec.result = db.Query(image, query_options);
+    const std::vector<RankedKeyframe>& ranked = rec.result.ranked;
+    for (size_t r = 0; r < ranked.size() && r < 5; ++r) {
+      const Keyframe* k = db.FindKeyframe(ranked[r].keyframe_id);
+      if (k != nullptr && truth.IsCorrect(q, *k)) {
         if (r == 0) rec.correct_at_1 = true;
         rec.correct_at_5 = true;
       }
     }
+    ScoredAnswer answer;
+    answer.has_answer = !ranked.empty();
+    answer.score = ranked.empty() ? 0.0 : ranked[0].score;
+    answer.correct = rec.correct_at_1;
+    answers.push_back(answer);
     ++report.num_queries;
     report.num_correct += rec.correct_at_1;
     report.num_correct_at_5 += rec.correct_at_5;
     report.num_answerable += rec.has_true_match_in_db;
-    latencies.push_back(rec.latency_ms);
-    match_times.push_back(rec.match_ms);
+    latency.push_back(rec.result.times.total_ms);
+    extract.push_back(rec.result.times.extract_ms);
+    match.push_back(rec.result.times.match_ms);
+    verify.push_back(rec.result.times.verify_ms);
     report.queries.push_back(std::move(rec));
     progress.Advance();
   }
@@ -110,19 +113,37 @@ EvalReport Evaluate(const Database& db, const std::string& db_dir,
     report.recall_at_1 = static_cast<double>(report.num_correct) / report.num_queries;
     report.recall_at_5 = static_cast<double>(report.num_correct_at_5) / report.num_queries;
   }
-  report.latency_ms = ComputeLatencyStats(latencies);
-  report.match_ms = ComputeLatencyStats(match_times);
-  report.image_bytes = DirectorySize((fs::path(db_dir) / "images").string());
-  report.feature_bytes = FileSize((fs::path(db_dir) / Database::kKeyframesFile).string());
-  const nlohmann::json& info = db.info();
-  if (info.contains("bytes"))
-    report.full_png_bytes = info["bytes"].value("full_frames_png", uint64_t{0});
+  report.precision_recall =
+      ComputePrecisionRecall(answers, report.num_answerable, query_options.min_score);
+  report.latency_ms = ComputeLatencyStats(latency);
+  report.extract_ms = ComputeLatencyStats(extract);
+  report.match_ms = ComputeLatencyStats(match);
+  report.verify_ms = ComputeLatencyStats(verify);
+  report.image_bytes = DirectorySize((fs::path(db.directory()) / "images").string());
+  report.feature_bytes = FileSize((fs::path(db.directory()) / Database::kKeyframesFile).string());
+  const nlohmann::json& info = db.manifest();
+  if (info.contains("bytes") && info["bytes"].is_object() &&
+      info["bytes"].value("full_frames_png", nlohmann::json()).is_number_unsigned()) {
+    report.full_png_bytes = info["bytes"]["full_frames_png"].get<uint64_t>();
+  }
   if (report.full_png_bytes > 0) {
     report.reduction_vs_full =
         1.0 - static_cast<double>(report.image_bytes) / static_cast<double>(report.full_png_bytes);
   }
   return report;
 }
+
+namespace {
+nlohmann::json StatsJson(const LatencyStats& s) {
+  return {{"mean", s.mean}, {"p50", s.p50}, {"p99", s.p99}, {"max", s.max}};
+}
+nlohmann::json PointJson(const PrPoint& p) {
+  return {{"threshold", p.threshold},
+          {"precision", p.precision},
+          {"recall", p.recall},
+          {"answered", p.answered}};
+}
+}  // namespace
 
 nlohmann::json EvalReportToJson(const EvalReport& r) {
   nlohmann::json j;
@@ -133,11 +154,19 @@ nlohmann::json EvalReportToJson(const EvalReport& r) {
   j["num_unreadable"] = r.num_unreadable;
   j["recall_at_1"] = r.recall_at_1;
   j["recall_at_5"] = r.recall_at_5;
-  j["latency_ms"] = {{"mean", r.latency_ms.mean},
-                     {"p50", r.latency_ms.p50},
-                     {"p99", r.latency_ms.p99},
-                     {"max", r.latency_ms.max}};
-  j["match_ms"] = {{"mean", r.match_ms.mean}, {"p50", r.match_ms.p50}, {"p99", r.match_ms.p99}};
+  j["verified"] = r.verified;
+  nlohmann::json curve = nlohmann::json::array();
+  for (const PrPoint& p : r.precision_recall.curve) curve.push_back(PointJson(p));
+  j["precision_recall"] = {
+      {"average_precision", r.precision_recall.average_precision},
+      {"recall_at_full_precision", r.precision_recall.recall_at_full_precision},
+      {"min_score", r.min_score},
+      {"at_threshold", PointJson(r.precision_recall.at_threshold)},
+      {"curve", curve}};
+  j["latency_ms"] = StatsJson(r.latency_ms);
+  j["stage_ms"] = {{"extract", StatsJson(r.extract_ms)},
+                   {"match", StatsJson(r.match_ms)},
+                   {"verify", StatsJson(r.verify_ms)}};
   j["database_bytes"] = {{"images", r.image_bytes}, {"features", r.feature_bytes}};
   j["full_frames_png_bytes"] = r.full_png_bytes;
   j["reduction_vs_full"] = r.reduction_vs_full;
@@ -151,12 +180,7 @@ nlohmann::json EvalReportToJson(const EvalReport& r) {
     e["correct_at_1"] = q.correct_at_1;
     e["correct_at_5"] = q.correct_at_5;
     e["has_true_match_in_db"] = q.has_true_match_in_db;
-    e["num_features"] = q.num_features;
-    e["latency_ms"] = q.latency_ms;
-    nlohmann::json ranked = nlohmann::json::array();
-    for (const auto& s : q.ranked)
-      ranked.push_back({{"keyframe_id", s.keyframe_id}, {"score", s.score}});
-    e["ranked"] = ranked;
+    e["result"] = q.unreadable ? nlohmann::json(nullptr) : nlohmann::json(q.result);
     queries.push_back(e);
   }
   j["queries"] = queries;
@@ -164,17 +188,27 @@ nlohmann::json EvalReportToJson(const EvalReport& r) {
 }
 
 std::string FormatEvalReport(const EvalReport& r) {
+  const PrecisionRecall& pr = r.precision_recall;
   std::string out;
   out += fmt::format("  queries           {:>10}   (ground truth: {})\n", r.num_queries, r.truth);
   if (r.num_unreadable > 0) out += fmt::format("  unreadable        {:>10}\n", r.num_unreadable);
   out += fmt::format("  answerable        {:>10}   (a true match is in the database)\n",
                      r.num_answerable);
+  out += fmt::format("  verification      {:>10}\n", r.verified ? "on" : "off");
   out += fmt::format("  correct @1        {:>10}\n", r.num_correct);
   out += fmt::format("  recall@1          {:>10.3f}\n", r.recall_at_1);
   out += fmt::format("  recall@5          {:>10.3f}\n", r.recall_at_5);
+  out += fmt::format("  answered          {:>10}   (best score >= {:g})\n",
+                     pr.at_threshold.answered, r.min_score);
+  out += fmt::format("  precision         {:>10.3f}   at that threshold (recall {:.3f})\n",
+                     pr.at_threshold.precision, pr.at_threshold.recall);
+  out += fmt::format("  PR AUC            {:>10.3f}   (average precision over the threshold)\n",
+                     pr.average_precision);
+  out += fmt::format("  recall @ P=1      {:>10.3f}\n", pr.recall_at_full_precision);
   out += fmt::format("  latency ms        {:>10.2f}   mean  (p50 {:.2f}, p99 {:.2f})\n",
                      r.latency_ms.mean, r.latency_ms.p50, r.latency_ms.p99);
-  out += fmt::format("  matching ms       {:>10.2f}   mean  (of the latency)\n", r.match_ms.mean);
+  out += fmt::format("  stages ms         {:>10}   extract {:.2f}, match {:.2f}, verify {:.2f}\n",
+                     "mean", r.extract_ms.mean, r.match_ms.mean, r.verify_ms.mean);
   out += fmt::format("  stored images     {:>10} bytes\n", r.image_bytes);
   out += fmt::format("  features          {:>10} bytes\n", r.feature_bytes);
   out += fmt::format("  whole frames PNG  {:>10} bytes\n", r.full_png_bytes);

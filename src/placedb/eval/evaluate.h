@@ -1,6 +1,7 @@
 // The paper's experiment, automated: N random validation queries (or all)
-// against a database, each judged against ground truth; recall, latency,
-// database size.
+// against a database, each judged against ground truth; recall@1/@5,
+// precision-recall over the decision threshold, latency per stage, database
+// size. Queries run through the session API (PlaceDatabase), as any client's.
 #pragma once
 
 #include <cstdint>
@@ -10,20 +11,18 @@
 
 #include "placedb/eval/ground_truth.h"
 #include "placedb/eval/metrics.h"
-#include "placedb/index/query.h"
+#include "placedb/index/place_database.h"
 
 namespace placedb {
 
 struct EvalOptions {
-  // Number of random queries (the paper's 50). Default 50.
+  // Number of random queries (the paper's 50). Range [1, 1000000]. Default 50.
   int num_queries = 50;
   // Use every query that has ground truth instead. Default false.
   bool all = false;
   // Seed of the random selection: the same seed picks the same queries for
   // every database. Default 1.
   uint64_t seed = 1;
-  // Threads matching each query (partitions of the database). Default 1.
-  int threads = 1;
   // Draw a progress bar on a terminal. Default true.
   bool progress = true;
 
@@ -33,14 +32,10 @@ struct EvalOptions {
 struct QueryRecord {
   int query_id = 0;
   std::string image;
-  std::vector<ScoredKeyframe> ranked;
-  bool correct_at_1 = false;
-  bool correct_at_5 = false;
+  QueryResult result;
+  bool correct_at_1 = false;          // ranked[0] is a true match (whatever the decision)
+  bool correct_at_5 = false;          // one of the first five is
   bool has_true_match_in_db = false;  // whether any keyframe could be right
-  int num_features = 0;
-  double latency_ms = 0.0;  // extraction + matching
-  double extract_ms = 0.0;
-  double match_ms = 0.0;
   bool unreadable = false;
 };
 
@@ -52,8 +47,15 @@ struct EvalReport {
   int num_unreadable = 0;
   double recall_at_1 = 0.0;
   double recall_at_5 = 0.0;
-  LatencyStats latency_ms;
+  // Over the decision threshold (QueryOptions::min_score); at_threshold is
+  // the operating point of the options used.
+  PrecisionRecall precision_recall;
+  double min_score = 0.0;
+  bool verified = false;    // whether the verify stage ran
+  LatencyStats latency_ms;  // whole queries, extraction included
+  LatencyStats extract_ms;
   LatencyStats match_ms;
+  LatencyStats verify_ms;
   uint64_t image_bytes = 0;        // stored PNGs
   uint64_t feature_bytes = 0;      // keyframes.bin
   uint64_t full_png_bytes = 0;     // every database frame stored whole as PNG
@@ -71,15 +73,16 @@ std::vector<Frame> SampleFrames(std::vector<Frame> frames, int n, uint64_t seed)
 std::vector<Frame> SelectQueries(const std::vector<Frame>& frames, const GroundTruth& truth,
                                  const EvalOptions& options);
 
-// Runs the evaluation. `db_dir` is where the database lives (for its sizes).
-EvalReport Evaluate(const Database& db, const std::string& db_dir,
-                    const FeatureExtractor& extractor, const std::vector<Frame>& query_frames,
+// Runs the evaluation of `db` on `query_frames`.
+EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_frames,
                     const GroundTruth& truth, const EvalOptions& eval_options,
                     const QueryOptions& query_options);
 
 // The report as JSON: num_queries, num_correct, recall_at_1, recall_at_5,
-// latency_ms {mean, p50, p99, max}, database_bytes {images, features},
-// reduction_vs_full, and per-query records.
+// precision_recall {average_precision, recall_at_full_precision,
+// at_threshold, curve}, latency_ms {mean, p50, p99, max} and per stage,
+// database_bytes {images, features}, reduction_vs_full, and per-query records
+// with each query's full QueryResult.
 nlohmann::json EvalReportToJson(const EvalReport& report);
 
 // A human-readable table of the report.

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -10,6 +11,7 @@
 #include <string>
 
 #include "placedb/index/builder.h"
+#include "placedb/index/query.h"
 #include "placedb/util/testing.h"
 
 namespace {
@@ -56,10 +58,44 @@ TEST_F(CliTest, HelpListsEverySubcommandAndOption) {
   }
   const CommandResult build_help = Placedb("build --help");
   EXPECT_EQ(build_help.code, 0);
-  for (const char* flag : {"--images", "--tum", "--first", "--last", "--out", "--features",
-                           "--crop", "--resize", "--threads", "--quiet", "--strict",
-                           "--crop-percentile", "--orb-max-features", "--surf-hessian"}) {
+  for (const char* flag : {"--images",
+                           "--tum",
+                           "--first",
+                           "--last",
+                           "--out",
+                           "--features",
+                           "--crop",
+                           "--resize",
+                           "--threads",
+                           "--quiet",
+                           "--strict",
+                           "--crop-percentile",
+                           "--crop-fast-threshold",
+                           "--crop-fast-nonmax",
+                           "--crop-min-region",
+                           "--orb-max-features",
+                           "--orb-patch-size",
+                           "--surf-hessian",
+                           "--upscale-below",
+                           "--frame-size",
+                           "--tum-rgb-list",
+                           "--tum-groundtruth",
+                           "--png-compression",
+                           "--extract-in-context",
+                           "--no-images"}) {
     EXPECT_TRUE(Contains(build_help.output, flag)) << flag;
+  }
+  // Every field of the query options has its flag, on query, eval and bench.
+  for (const char* sub : {"query", "eval", "bench"}) {
+    const CommandResult help = Placedb(std::string(sub) + " --help");
+    EXPECT_EQ(help.code, 0);
+    for (const char* flag :
+         {"--top-k", "--search", "--ratio", "--max-hamming", "--max-l2", "--laplacian-sign",
+          "--one-to-one", "--cross-check", "--min-matches", "--no-verify", "--verify-model",
+          "--verify-candidates", "--verify-error", "--verify-confidence", "--verify-iterations",
+          "--verify-seed", "--min-score", "--threads"}) {
+      EXPECT_TRUE(Contains(help.output, flag)) << sub << " " << flag;
+    }
   }
   // Defaults come from the options structs.
   EXPECT_TRUE(Contains(build_help.output, "85")) << build_help.output;
@@ -87,6 +123,11 @@ TEST_F(CliTest, BuildQueryEvalInfo) {
   ASSERT_EQ(query.code, 0) << query.output;
   const auto q = nlohmann::json::parse(std::ifstream(Path("q.json")));
   ASSERT_FALSE(q["best"].is_null());
+  // The library's QueryResult JSON: it parses back with the library.
+  const placedb::QueryResult parsed = q.get<placedb::QueryResult>();
+  EXPECT_TRUE(parsed.matched);
+  EXPECT_TRUE(parsed.ranked[0].verified());
+  EXPECT_TRUE(Contains(query.output, "inliers")) << query.output;
   const int best = q["best"]["keyframe_id"];
   EXPECT_GE(best, 1);  // 42 revisits images 1-4
   EXPECT_LE(best, 4);
@@ -103,6 +144,17 @@ TEST_F(CliTest, BuildQueryEvalInfo) {
   EXPECT_GT(e["database_bytes"]["features"].get<long>(), 0);
   EXPECT_GT(e["reduction_vs_full"].get<double>(), 0.3);
   EXPECT_TRUE(Contains(eval.output, "recall@1"));
+  EXPECT_TRUE(e["precision_recall"].contains("average_precision"));
+  EXPECT_FALSE(e["precision_recall"]["curve"].empty());
+  EXPECT_EQ(e["queries"][0]["result"].get<placedb::QueryResult>().num_keyframes, 40u);
+  // An open range prints as one.
+  const CommandResult open_range =
+      Placedb("eval --db " + db + " --images " + kImages + " --first 80 --truth " + kTruth +
+              " --all --quiet --no-verify --threads 0");
+  ASSERT_EQ(open_range.code, 0) << open_range.output;
+  EXPECT_TRUE(Contains(open_range.output, "[80..]")) << open_range.output;
+  EXPECT_FALSE(Contains(open_range.output, "-1]")) << open_range.output;
+  EXPECT_TRUE(Contains(open_range.output, "verification             off")) << open_range.output;
 }
 
 TEST_F(CliTest, UnreadableImageIsSkippedAndCountedOrFatalWithStrict) {
@@ -155,6 +207,57 @@ TEST_F(CliTest, ClearErrors) {
       Placedb("eval --db " + db + " --images " + kImages + " --first 41");
   EXPECT_EQ(no_truth.code, 1);
   EXPECT_TRUE(Contains(no_truth.output, "--truth")) << no_truth.output;
+}
+
+// Argument errors, like every other error: one line on stderr, exit code 1.
+TEST_F(CliTest, ArgumentErrorsAreOneLineAndExitOne) {
+  const std::string db = Path("db");
+  ASSERT_EQ(Placedb("build --images " + kImages + " --last 3 --out " + db + " --quiet").code, 0);
+  const std::string image = " --image " + kImages + "/001.jpg";
+  for (const std::string& args :
+       {std::string("build --images ") + kImages + " --out " + Path("x") + " --threads abc",
+        std::string("build --images ") + kImages + " --out " + Path("x") + " --threads -1",
+        std::string("build --images ") + kImages + " --out " + Path("x") + " --threads 5000",
+        std::string("build --images ") + kImages + " --out " + Path("x") + " --crop-sigma nan",
+        std::string("build --images ") + kImages + " --out " + Path("x") +
+            " --orb-edge-threshold 2147483647",
+        std::string("build --images ") + kImages + " --out " + Path("x") + " --frame-size 160",
+        std::string("build --images ") + kImages + " --out " + Path("x") + " --no-such-flag",
+        std::string("build --out ") + Path("x"), "query --db " + db + image + " --top-k 0",
+        "query --db " + db + image + " --ratio 2",
+        "query --db " + db + image + " --verify-model affine",
+        "query --db " + db + image + " --threads -2",
+        "bench --db " + db + " --images " + kImages + " --queries -4",
+        "eval --db " + db + " --images " + kImages + " --truth " + kTruth + " --queries 0",
+        std::string("frobnicate")}) {
+    const CommandResult r = Placedb(args);
+    EXPECT_EQ(r.code, 1) << args << "\n" << r.output;
+    EXPECT_TRUE(Contains(r.output, "placedb: error:")) << args << "\n" << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << args << "\n" << r.output;
+    EXPECT_FALSE(Contains(r.output, "not in range 0.000000")) << r.output;
+  }
+  EXPECT_FALSE(fs::exists(Path("x")));
+  // --threads 0 (one per core) works for every command that takes it.
+  EXPECT_EQ(Placedb("query --db " + db + image + " --threads 0").code, 0);
+  EXPECT_EQ(
+      Placedb("build --images " + kImages + " --last 2 --out " + Path("y") + " --threads 0 --quiet")
+          .code,
+      0);
+  EXPECT_EQ(Placedb("--version").code, 0);
+}
+
+// A smaller camera, simulated: frames resized as they are read.
+TEST_F(CliTest, FrameSizeSimulatesASmallCamera) {
+  const std::string db = Path("small");
+  const CommandResult build =
+      Placedb("build --images " + kImages + " --last 10 --frame-size 160x120 --out " + db +
+              " --quiet --json " + Path("b.json"));
+  ASSERT_EQ(build.code, 0) << build.output;
+  const CommandResult info = Placedb("info --db " + db + " --json");
+  ASSERT_EQ(info.code, 0);
+  const auto m = nlohmann::json::parse(info.output);
+  EXPECT_TRUE(Contains(m["source"].get<std::string>(), "at 160x120")) << m["source"];
+  EXPECT_EQ(m["settings"]["features"]["upscale_below"], 240);
 }
 
 TEST_F(CliTest, TinyImagesGiveZeroFeaturesWithoutError) {

@@ -1,17 +1,17 @@
 // The `placedb` command: one sub-command table. Flags bind straight onto the
-// library's options structs, so --help and the code cannot drift apart.
-#include <fmt/format.h>
+// library's options structs, so --help and the code cannot drift apart. Any
+// error, of the arguments or of the work, is one line on stderr and exit 1.
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
 #include <cstdio>
-#include <fstream>
-#include <iostream>
 #include <memory>
 #include <opencv2/core/utils/logger.hpp>
+#include <vector>
 
-#include "placedb/exe/commands.h"
+#include "placedb/exe/cli.h"
+#include "placedb/util/version.h"
 
 int main(int argc, char** argv) {
   auto logger = spdlog::stderr_color_mt("placedb");
@@ -21,17 +21,36 @@ int main(int argc, char** argv) {
   // warnings would only repeat them.
   cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_ERROR);
 
+  namespace cli = placedb::cli;
   CLI::App app{"placedb: visual place recognition against a compact keyframe database"};
   app.require_subcommand(1);
-  app.set_version_flag("--version", "placedb 0.1.0");
-  placedb::RegisterCommands(app);
+  app.set_version_flag("--version", std::string("placedb ") + placedb::kPlacedbVersion);
+  std::vector<std::unique_ptr<cli::Command>> commands;
+  commands.push_back(cli::MakeBuildCommand());
+  commands.push_back(cli::MakeQueryCommand());
+  commands.push_back(cli::MakeEvalCommand());
+  commands.push_back(cli::MakeInfoCommand());
+  commands.push_back(cli::MakeBenchCommand());
+  std::vector<std::pair<CLI::App*, cli::Command*>> table;
+  for (auto& c : commands) table.emplace_back(c->Register(app), c.get());
   try {
     app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
+  } catch (const CLI::CallForHelp& e) {
     return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::fprintf(stderr, "placedb: error: %s (see placedb --help)\n", e.what());
+    return 1;
   }
   try {
-    return placedb::RunSelectedCommand(app);
+    for (const auto& [sub, command] : table) {
+      if (sub->parsed()) return command->Run();
+    }
+    std::fprintf(stderr, "placedb: error: no sub-command given (see placedb --help)\n");
+    return 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "placedb: error: %s\n", e.what());
     return 1;

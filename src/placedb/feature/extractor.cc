@@ -1,27 +1,34 @@
 #include "placedb/feature/extractor.h"
 
+#include <algorithm>
+#include <cmath>
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "placedb/image/chromaticity.h"
 #include "placedb/util/check.h"
+#include "placedb/util/options.h"
 
 namespace placedb {
 
 std::string OrbOptions::Check() const {
-  if (max_features < 1) return "orb.max_features must be >= 1";
-  if (scale_factor <= 1.0) return "orb.scale_factor must be > 1";
-  if (num_levels < 1) return "orb.num_levels must be >= 1";
-  if (edge_threshold < 0) return "orb.edge_threshold must be >= 0";
-  if (fast_threshold < 1 || fast_threshold > 255) return "orb.fast_threshold must be in [1, 255]";
-  if (patch_size < 2) return "orb.patch_size must be >= 2";
-  return "";
+  return FirstReason({CheckRange("max_features", max_features, 1, 100000),
+                      CheckRange("scale_factor", scale_factor, 1.0, 4.0, /*lo_open=*/true),
+                      CheckRange("num_levels", num_levels, 1, 32),
+                      CheckRange("edge_threshold", edge_threshold, 0, 512),
+                      CheckRange("fast_threshold", fast_threshold, 1, 255),
+                      CheckRange("patch_size", patch_size, 2, 512)});
 }
 
 std::string ExtractorOptions::Check() const {
-  if (type == FeatureType::kOrb) return orb.Check();
-  if (type == FeatureType::kSurf) return surf.Check();
-  return "unknown feature type";
+  if (type != FeatureType::kOrb && type != FeatureType::kSurf) return "type is unknown";
+  return FirstReason({Nested("orb", orb.Check()), Nested("surf", surf.Check()),
+                      CheckRange("upscale_below", upscale_below, 0, 4096)});
+}
+
+int DescriptorBytes(const ExtractorOptions& options) {
+  if (options.type == FeatureType::kOrb) return 32;
+  return (options.surf.extended ? 128 : 64) * static_cast<int>(sizeof(float));
 }
 
 namespace {
@@ -75,17 +82,59 @@ class SurfExtractor : public FeatureExtractor {
   SurfOptions options_;
 };
 
+// Extracts small images upscaled, then maps the keypoints back: OpenCV's
+// resize puts destination pixel centre x' at (x + 0.5) f - 0.5. Tiny images
+// (thumbnails, a few pixels) are not blown up beyond kMaxUpscale.
+constexpr double kMaxUpscale = 4.0;
+class UpscalingExtractor : public FeatureExtractor {
+ public:
+  UpscalingExtractor(std::unique_ptr<FeatureExtractor> inner, int upscale_below)
+      : inner_(std::move(inner)), upscale_below_(upscale_below) {}
+
+  FeatureSet Extract(const cv::Mat& image) const override {
+    const int shorter = std::min(image.cols, image.rows);
+    if (image.empty() || shorter >= upscale_below_) return inner_->Extract(image);
+    const double f = std::min(static_cast<double>(upscale_below_) / shorter, kMaxUpscale);
+    cv::Mat big;
+    cv::resize(image, big,
+               cv::Size(static_cast<int>(std::lround(image.cols * f)),
+                        static_cast<int>(std::lround(image.rows * f))),
+               0, 0, cv::INTER_LINEAR);
+    FeatureSet set = inner_->Extract(big);
+    const double fx = static_cast<double>(big.cols) / image.cols;
+    const double fy = static_cast<double>(big.rows) / image.rows;
+    for (cv::KeyPoint& kp : set.keypoints) {
+      kp.pt.x = static_cast<float>((kp.pt.x + 0.5) / fx - 0.5);
+      kp.pt.y = static_cast<float>((kp.pt.y + 0.5) / fy - 0.5);
+      kp.size = static_cast<float>(kp.size / f);
+    }
+    return set;
+  }
+  FeatureType type() const override { return inner_->type(); }
+
+ private:
+  std::unique_ptr<FeatureExtractor> inner_;
+  int upscale_below_;
+};
+
 }  // namespace
 
 std::unique_ptr<FeatureExtractor> FeatureExtractor::Create(const ExtractorOptions& options) {
   PLACEDB_CHECK_OPTIONS(options);
+  std::unique_ptr<FeatureExtractor> extractor;
   switch (options.type) {
     case FeatureType::kOrb:
-      return std::make_unique<OrbExtractor>(options.orb);
+      extractor = std::make_unique<OrbExtractor>(options.orb);
+      break;
     case FeatureType::kSurf:
-      return std::make_unique<SurfExtractor>(options.surf);
+      extractor = std::make_unique<SurfExtractor>(options.surf);
+      break;
   }
-  PLACEDB_THROW_INVALID("unknown feature type");
+  if (!extractor) PLACEDB_THROW_INVALID("unknown feature type");
+  if (options.upscale_below > 0) {
+    extractor = std::make_unique<UpscalingExtractor>(std::move(extractor), options.upscale_below);
+  }
+  return extractor;
 }
 
 }  // namespace placedb

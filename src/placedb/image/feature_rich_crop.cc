@@ -8,17 +8,17 @@
 #include <vector>
 
 #include "placedb/util/check.h"
+#include "placedb/util/options.h"
 
 namespace placedb {
 
 std::string CropOptions::Check() const {
-  if (smooth_sigma < 0) return "smooth_sigma must be >= 0";
-  if (percentile < 0 || percentile >= 100) return "percentile must be in [0, 100)";
-  if (padding < 0) return "padding must be >= 0";
-  if (min_fast_keypoints < 0) return "min_fast_keypoints must be >= 0";
-  if (fast_threshold < 1 || fast_threshold > 255) return "fast_threshold must be in [1, 255]";
-  if (min_region_pixels < 1) return "min_region_pixels must be >= 1";
-  return "";
+  return FirstReason({CheckRange("smooth_sigma", smooth_sigma, 0.0, 50.0),
+                      CheckRange("percentile", percentile, 0.0, 99.9),
+                      CheckRange("padding", padding, 0, 4096),
+                      CheckRange("min_fast_keypoints", min_fast_keypoints, 0, 100000),
+                      CheckRange("fast_threshold", fast_threshold, 1, 255),
+                      CheckRange("min_region_pixels", min_region_pixels, 1, 100000000)});
 }
 
 int CountFastKeypoints(const cv::Mat& image, int threshold, bool nonmax) {

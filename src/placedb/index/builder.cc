@@ -15,9 +15,12 @@
 #include "placedb/image/resize.h"
 #include "placedb/util/check.h"
 #include "placedb/util/file_io.h"
+#include "placedb/util/json_reader.h"
+#include "placedb/util/options.h"
 #include "placedb/util/progress.h"
 #include "placedb/util/thread_pool.h"
 #include "placedb/util/timer.h"
+#include "placedb/util/version.h"
 
 namespace placedb {
 namespace fs = std::filesystem;
@@ -31,13 +34,13 @@ CropMode ParseCropMode(const std::string& name) {
 }
 
 std::string BuildOptions::Check() const {
-  if (!IsValidAreaDivisor(resize)) return "resize must be 1, 4 or 16";
-  if (png_compression < 0 || png_compression > 9) return "png_compression must be in [0, 9]";
-  std::string reason = crop_options.Check();
-  if (!reason.empty()) return "crop: " + reason;
-  reason = features.Check();
-  if (!reason.empty()) return "features: " + reason;
-  return "";
+  if (crop != CropMode::kNone && crop != CropMode::kChroma) return "crop is unknown";
+  if (!IsValidAreaDivisor(resize))
+    return "resize must be 1, 4 or 16 (got " + std::to_string(resize) + ")";
+  return FirstReason({CheckRange("png_compression", png_compression, 0, 9),
+                      CheckRange("threads", threads, 0, 1024),
+                      Nested("crop_options", crop_options.Check()),
+                      Nested("features", features.Check())});
 }
 
 ProcessedFrame ProcessFrame(const Frame& frame, const cv::Mat& image, const BuildOptions& options,
@@ -105,6 +108,20 @@ NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(OrbOptions, max_features, scale_factor, num_l
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(SurfOptions, hessian_threshold, num_octaves, num_octave_layers,
                                    extended, upright, max_features)
 
+nlohmann::json BuildReportToJson(const BuildReport& r, const std::string& database) {
+  return {{"database", database},
+          {"num_frames", r.num_frames},
+          {"num_keyframes", r.num_keyframes},
+          {"num_skipped", r.num_skipped},
+          {"skipped", r.skipped},
+          {"num_cropped", r.num_cropped},
+          {"num_features", r.num_features},
+          {"image_bytes", r.image_bytes},
+          {"feature_bytes", r.feature_bytes},
+          {"full_png_bytes", r.full_png_bytes},
+          {"seconds", r.seconds}};
+}
+
 nlohmann::json BuildSettingsToJson(const BuildOptions& o) {
   nlohmann::json j;
   j["crop"] = CropModeName(o.crop);
@@ -116,22 +133,58 @@ nlohmann::json BuildSettingsToJson(const BuildOptions& o) {
   j["features"]["type"] = FeatureTypeName(o.features.type);
   j["features"]["orb"] = o.features.orb;
   j["features"]["surf"] = o.features.surf;
+  j["features"]["upscale_below"] = o.features.upscale_below;
   return j;
 }
 
-ExtractorOptions ExtractorOptionsFromManifest(const nlohmann::json& manifest) {
-  ExtractorOptions o;
-  if (!manifest.contains("settings") || !manifest["settings"].contains("features")) {
-    PLACEDB_THROW_RUNTIME("the database manifest has no feature settings");
-  }
-  const nlohmann::json& f = manifest["settings"]["features"];
+BuildOptions BuildOptionsFromManifest(const nlohmann::json& manifest, const std::string& dir) {
+  const JsonReader m(manifest, dir + "/manifest.json", /*runtime_errors=*/true);
+  const JsonReader s = m.Child("settings");
+  BuildOptions o;
   try {
-    o.type = ParseFeatureType(f.at("type").get<std::string>());
-    o.orb = f.at("orb").get<OrbOptions>();
-    o.surf = f.at("surf").get<SurfOptions>();
-  } catch (const nlohmann::json::exception& e) {
-    PLACEDB_THROW_RUNTIME("the database manifest's feature settings are malformed: ", e.what());
+    o.crop = ParseCropMode(s.String("crop"));
+    o.features.type = ParseFeatureType(s.Child("features").String("type"));
+  } catch (const std::invalid_argument& e) {
+    PLACEDB_THROW_RUNTIME(dir, "/manifest.json: ", e.what());
   }
+  o.resize = static_cast<int>(s.Integer("resize", 1, 16));
+  s.Read("store_images", &o.store_images);
+  s.Read("extract_in_context", &o.extract_in_context);
+  s.Read("png_compression", &o.png_compression);
+  if (s.Has("crop_options")) {
+    const JsonReader c = s.Child("crop_options");
+    CropOptions& co = o.crop_options;
+    c.Read("smooth_sigma", &co.smooth_sigma);
+    c.Read("percentile", &co.percentile);
+    c.Read("padding", &co.padding);
+    c.Read("min_fast_keypoints", &co.min_fast_keypoints);
+    c.Read("fast_threshold", &co.fast_threshold);
+    c.Read("fast_nonmax", &co.fast_nonmax);
+    c.Read("min_region_pixels", &co.min_region_pixels);
+  }
+  const JsonReader f = s.Child("features");
+  // A manifest without the field predates small-frame upscaling: its
+  // keyframes were extracted without it, and so are its queries.
+  o.features.upscale_below = 0;
+  f.Read("upscale_below", &o.features.upscale_below);
+  const JsonReader orb = f.Child("orb");
+  OrbOptions& oo = o.features.orb;
+  orb.Read("max_features", &oo.max_features);
+  orb.Read("scale_factor", &oo.scale_factor);
+  orb.Read("num_levels", &oo.num_levels);
+  orb.Read("edge_threshold", &oo.edge_threshold);
+  orb.Read("fast_threshold", &oo.fast_threshold);
+  orb.Read("patch_size", &oo.patch_size);
+  const JsonReader surf = f.Child("surf");
+  SurfOptions& so = o.features.surf;
+  surf.Read("hessian_threshold", &so.hessian_threshold);
+  surf.Read("num_octaves", &so.num_octaves);
+  surf.Read("num_octave_layers", &so.num_octave_layers);
+  surf.Read("extended", &so.extended);
+  surf.Read("upright", &so.upright);
+  surf.Read("max_features", &so.max_features);
+  const std::string reason = o.Check();
+  if (!reason.empty()) PLACEDB_THROW_RUNTIME(dir, "/manifest.json: settings: ", reason);
   return o;
 }
 
@@ -211,7 +264,7 @@ BuildReport BuildDatabase(const std::vector<Frame>& frames, const BuildOptions& 
     ThreadPool pool(options.threads);
     pool.ParallelFor(frames.size(), [&](size_t i) {
       const Frame& frame = frames[i];
-      cv::Mat image = cv::imread(frame.image_path, cv::IMREAD_COLOR);
+      cv::Mat image = LoadFrameImage(frame);
       if (image.empty()) {
         if (options.strict) {
           PLACEDB_THROW_RUNTIME("cannot read image ", frame.image_path, " (frame ", frame.id,
@@ -242,9 +295,7 @@ BuildReport BuildDatabase(const std::vector<Frame>& frames, const BuildOptions& 
 
     BuildReport report;
     report.num_frames = frames.size();
-    Database db(options.features.type, options.features.type == FeatureType::kOrb
-                                           ? 32
-                                           : (options.features.surf.extended ? 128 : 64) * 4);
+    Database db(options.features.type, DescriptorBytes(options.features));
     for (size_t i = 0; i < frames.size(); ++i) {
       if (!results[i]) {
         spdlog::warn("skipped unreadable image {} (frame {})", frames[i].image_path, frames[i].id);
@@ -270,7 +321,7 @@ BuildReport BuildDatabase(const std::vector<Frame>& frames, const BuildOptions& 
     info["settings"] = BuildSettingsToJson(options);
     info["source"] = source_description;
     info["created"] = NowIso8601();
-    info["placedb_version"] = "0.1.0";
+    info["placedb_version"] = kPlacedbVersion;
     info["counts"]["frames"] = report.num_frames;
     info["counts"]["skipped_images"] = report.num_skipped;
     info["counts"]["cropped"] = report.num_cropped;

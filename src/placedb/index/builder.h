@@ -34,10 +34,10 @@ struct BuildOptions {
   bool extract_in_context = true;
   // Keep the stored images as PNGs in images/. Default true.
   bool store_images = true;
-  // PNG compression level 0-9 for stored images (and the whole-frame
-  // reference size). Default 3 (libpng's balance of size and speed).
+  // PNG compression level for stored images (and the whole-frame reference
+  // size). Range [0, 9]. Default 3 (libpng's balance of size and speed).
   int png_compression = 3;
-  // Worker threads, <= 0 for one per core. Default 0.
+  // Worker threads; 0 = one per core. Range [0, 1024]. Default 0.
   int threads = 0;
   // Abort on the first unreadable image instead of skipping it. Default false.
   bool strict = false;
@@ -62,6 +62,9 @@ struct BuildReport {
   double seconds = 0.0;
 };
 
+// The report as JSON (the database's path included).
+nlohmann::json BuildReportToJson(const BuildReport& report, const std::string& database);
+
 // What one frame becomes: the stored image and its keyframe with features.
 struct ProcessedFrame {
   Keyframe keyframe;
@@ -81,9 +84,12 @@ ProcessedFrame ProcessFrame(const Frame& frame, const cv::Mat& image, const Buil
 BuildReport BuildDatabase(const std::vector<Frame>& frames, const BuildOptions& options,
                           const std::string& out_dir, const std::string& source_description);
 
-// JSON of the settings a database was built with (stored in the manifest),
-// and the extractor options read back from a manifest.
+// JSON of the settings a database was built with (stored in the manifest,
+// "settings"), and the settings read back from a manifest: every field is
+// type-checked strictly and the whole is Check()ed; a bad one is a
+// std::runtime_error naming `dir` and the field. (The run-time fields
+// threads, strict, progress and overwrite are not stored.)
 nlohmann::json BuildSettingsToJson(const BuildOptions& options);
-ExtractorOptions ExtractorOptionsFromManifest(const nlohmann::json& manifest);
+BuildOptions BuildOptionsFromManifest(const nlohmann::json& manifest, const std::string& dir);
 
 }  // namespace placedb

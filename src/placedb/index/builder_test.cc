@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <random>
@@ -159,7 +160,8 @@ TEST(BuilderTest, ExtractorOptionsRoundTripThroughManifest) {
     EXPECT_GT(db.FeatureCount(i), 50u);
     EXPECT_EQ(db.keyframe(i).image_file, "");
   }
-  const ExtractorOptions back = ExtractorOptionsFromManifest(db.info());
+  const BuildOptions all_back = BuildOptionsFromManifest(db.info(), "db");
+  const ExtractorOptions& back = all_back.features;
   EXPECT_EQ(back.type, FeatureType::kOrb);
   EXPECT_EQ(back.orb.max_features, 123);
   EXPECT_EQ(back.orb.fast_threshold, 17);
@@ -173,18 +175,77 @@ TEST(BuilderTest, ExtractorOptionsRoundTripThroughManifest) {
   EXPECT_EQ(back.surf.max_features, 77);
   EXPECT_EQ(back.surf.num_octaves, 3);
   EXPECT_EQ(back.surf.num_octave_layers, options.features.surf.num_octave_layers);
+  EXPECT_EQ(back.upscale_below, options.features.upscale_below);
+  EXPECT_EQ(all_back.crop, options.crop);
+  EXPECT_EQ(all_back.resize, options.resize);
+  EXPECT_EQ(all_back.store_images, false);
+  EXPECT_EQ(all_back.crop_options.percentile, options.crop_options.percentile);
 
   // The SURF type round-trips too (manifest only, no build needed).
   BuildOptions surf = options;
   surf.features.type = FeatureType::kSurf;
   nlohmann::json manifest;
   manifest["settings"] = BuildSettingsToJson(surf);
-  EXPECT_EQ(ExtractorOptionsFromManifest(manifest).type, FeatureType::kSurf);
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>(
-      [] { ExtractorOptionsFromManifest(nlohmann::json::object()); }, "no feature settings"));
-  manifest["settings"]["features"].erase("orb");
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { ExtractorOptionsFromManifest(manifest); },
-                                             "feature settings are malformed"));
+  EXPECT_EQ(BuildOptionsFromManifest(manifest, "m").features.type, FeatureType::kSurf);
+  // A manifest from before small-frame upscaling: its queries are not upscaled.
+  manifest["settings"]["features"].erase("upscale_below");
+  EXPECT_EQ(BuildOptionsFromManifest(manifest, "m").features.upscale_below, 0);
+}
+
+// A manifest is input from outside: every field is type-checked strictly and
+// range-checked; the error names the database and the field.
+TEST(BuilderTest, MalformedManifestSettingsAreRejected) {
+  nlohmann::json good;
+  good["settings"] = BuildSettingsToJson(SmallBuild());
+  EXPECT_NO_THROW(BuildOptionsFromManifest(good, "db"));
+  auto fails = [&](const std::function<void(nlohmann::json&)>& edit, const std::string& part) {
+    nlohmann::json bad = good;
+    edit(bad);
+    return ThrowsWith<std::runtime_error>([&] { BuildOptionsFromManifest(bad, "db"); },
+                                          {"db/manifest.json", part});
+  };
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m.erase("settings"); }, "settings is missing"));
+  EXPECT_TRUE(
+      fails([](nlohmann::json& m) { m["settings"]["features"].erase("orb"); }, "orb is missing"));
+  EXPECT_TRUE(
+      fails([](nlohmann::json& m) { m["settings"]["resize"] = true; }, "resize is not an integer"));
+  EXPECT_TRUE(
+      fails([](nlohmann::json& m) { m["settings"]["resize"] = 3; }, "resize must be 1, 4 or 16"));
+  EXPECT_TRUE(fails(
+      [](nlohmann::json& m) { m["settings"]["features"]["orb"]["num_levels"] = -2147483649LL; },
+      "num_levels is out of range"));
+  EXPECT_TRUE(
+      fails([](nlohmann::json& m) { m["settings"]["features"]["orb"]["num_levels"] = 100000; },
+            "features.orb.num_levels must be in [1, 32]"));
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m["settings"]["features"]["surf"]["extended"] = 1; },
+                    "extended is not true or false"));
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m["settings"]["crop_options"]["smooth_sigma"] = 1e6; },
+                    "crop_options.smooth_sigma must be in [0, 50]"));
+  EXPECT_TRUE(
+      fails([](nlohmann::json& m) { m["settings"]["crop"] = "square"; }, "unknown crop mode"));
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m["settings"]["features"]["type"] = 2; },
+                    "type is not a string"));
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m = nlohmann::json::array(); }, "not a JSON object"));
+}
+
+// Build options are range-checked (NaN included) before any work starts.
+TEST(BuilderTest, BuildOptionRanges) {
+  BuildOptions o = SmallBuild();
+  EXPECT_EQ(o.Check(), "");
+  o.crop_options.smooth_sigma = std::nan("");
+  EXPECT_NE(o.Check().find("crop_options.smooth_sigma"), std::string::npos);
+  o = SmallBuild();
+  o.crop_options.padding = 2147483647;
+  EXPECT_NE(o.Check().find("crop_options.padding"), std::string::npos);
+  o = SmallBuild();
+  o.threads = -1;
+  EXPECT_NE(o.Check().find("threads"), std::string::npos);
+  o = SmallBuild();
+  o.resize = 2;
+  EXPECT_NE(o.Check().find("resize"), std::string::npos);
+  o = SmallBuild();
+  o.png_compression = 10;
+  EXPECT_NE(o.Check().find("png_compression"), std::string::npos);
 }
 
 TEST(BuilderTest, SurfDatabase) {

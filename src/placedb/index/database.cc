@@ -44,7 +44,7 @@ int Database::IndexOfId(int32_t id) const {
 }
 
 std::vector<cv::KeyPoint> Database::Keypoints(size_t index) const {
-  const auto begin = keypoints_.begin() + static_cast<ptrdiff_t>(feature_offset_[index]);
+  const auto begin = keypoints_.begin() + static_cast<ptrdiff_t>(local_offset_[index]);
   return std::vector<cv::KeyPoint>(begin, begin + feature_count_[index]);
 }
 
@@ -53,9 +53,9 @@ DescriptorBlock Database::Descriptors(size_t index) const {
   block.type = feature_type_;
   block.rows = static_cast<int>(feature_count_[index]);
   block.row_bytes = descriptor_bytes_;
-  block.data = DescriptorData() + feature_offset_[index] * descriptor_bytes_;
+  block.data = DescriptorData() + row_offset_[index] * descriptor_bytes_;
   if (feature_type_ == FeatureType::kSurf) {
-    block.laplacian = laplacian_.data() + feature_offset_[index];
+    block.laplacian = laplacian_.data() + local_offset_[index];
   }
   return block;
 }
@@ -73,13 +73,23 @@ void Database::AddKeyframe(Keyframe keyframe, const FeatureSet& features) {
   PLACEDB_CHECK(features.descriptors.rows == static_cast<int>(features.keypoints.size()),
                 "one descriptor per keypoint expected");
   PLACEDB_CHECK(IndexOfId(keyframe.id) < 0, "duplicate keyframe id ", keyframe.id);
-  if (mapping_) {  // copy on write: the mapped file is read-only
-    descriptors_.assign(mapped_descriptors_,
-                        mapped_descriptors_ + keypoints_.size() * descriptor_bytes_);
+  if (mapping_) {
+    // Copy on write: the mapped file is read-only. Only this database's
+    // keyframes are copied, back to back, so rows and keypoints align again.
+    std::vector<uint8_t> owned;
+    owned.reserve(keypoints_.size() * descriptor_bytes_);
+    for (size_t i = 0; i < keyframes_.size(); ++i) {
+      const DescriptorBlock block = Descriptors(i);
+      owned.insert(owned.end(), block.data,
+                   block.data + static_cast<size_t>(block.rows) * block.row_bytes);
+    }
+    descriptors_ = std::move(owned);
+    row_offset_ = local_offset_;
     mapping_.reset();
     mapped_descriptors_ = nullptr;
   }
-  feature_offset_.push_back(keypoints_.size());
+  row_offset_.push_back(keypoints_.size());
+  local_offset_.push_back(keypoints_.size());
   feature_count_.push_back(static_cast<uint32_t>(features.keypoints.size()));
   keypoints_.insert(keypoints_.end(), features.keypoints.begin(), features.keypoints.end());
   for (int r = 0; r < features.descriptors.rows; ++r) {
@@ -91,6 +101,7 @@ void Database::AddKeyframe(Keyframe keyframe, const FeatureSet& features) {
   }
   index_of_id_.emplace(keyframe.id, static_cast<int>(keyframes_.size()));
   keyframes_.push_back(std::move(keyframe));
+  keyframes_in_file_ = keyframes_.size();
 }
 
 std::string Database::EncodeKeyframes() const {
@@ -131,7 +142,7 @@ std::string Database::EncodeKeyframes() const {
     w.Put<double>(pose.rotation.y());
     w.Put<double>(pose.rotation.z());
     w.Put<double>(pose.rotation.w());
-    w.Put<uint64_t>(feature_offset_[i]);
+    w.Put<uint64_t>(local_offset_[i]);  // rows are written back to back below
     w.Put<uint32_t>(feature_count_[i]);
     w.Put<uint32_t>(static_cast<uint32_t>(k.source.size()));
     w.Put<uint64_t>(string_offset);
@@ -149,14 +160,18 @@ std::string Database::EncodeKeyframes() const {
     w.Put<int32_t>(kp.class_id);
   }
   w.Align(kDescriptorAlignment);
-  w.PutArray(DescriptorData(), keypoints_.size() * descriptor_bytes_);
+  for (size_t i = 0; i < keyframes_.size(); ++i) {
+    const DescriptorBlock block = Descriptors(i);
+    w.PutArray(block.data, static_cast<size_t>(block.rows) * block.row_bytes);
+  }
   w.PutBytes(strings.data(), strings.size());
   const uint32_t crc = Crc32(w.buffer().data(), w.size());
   w.Put<uint32_t>(crc);
   return w.buffer();
 }
 
-void Database::DecodeKeyframes(std::shared_ptr<const MappedFile> file, const std::string& path) {
+void Database::DecodeKeyframes(std::shared_ptr<const MappedFile> file, const std::string& path,
+                               const KeyframeSubset& subset) {
   const std::string_view bytes(file->data(), file->size());
   if (!HostIsLittleEndian()) PLACEDB_THROW_RUNTIME("placedb databases need a little-endian host");
   // A file cut inside the magic (a prefix of it, or empty) is truncated, not
@@ -194,8 +209,8 @@ void Database::DecodeKeyframes(std::shared_ptr<const MappedFile> file, const std
       header.position() + num_keyframes * kKeyframeRecord + num_features * kKeypointRecord;
   expected = (expected + kDescriptorAlignment - 1) / kDescriptorAlignment * kDescriptorAlignment;
   expected += num_features * row_bytes + string_bytes + 4;
-  if (num_keyframes > bytes.size() || num_features > bytes.size() || row_bytes > 4096 ||
-      bytes.size() < expected) {
+  if (num_keyframes > bytes.size() || num_features > bytes.size() || string_bytes > bytes.size() ||
+      row_bytes > 4096 || bytes.size() < expected) {
     PLACEDB_THROW_RUNTIME(path, ": file is truncated (", bytes.size(), " bytes, header says ",
                           expected, ")");
   }
@@ -215,13 +230,21 @@ void Database::DecodeKeyframes(std::shared_ptr<const MappedFile> file, const std
   feature_type_ = static_cast<FeatureType>(type);
   descriptor_bytes_ = static_cast<int>(row_bytes);
 
+  // Every keyframe record is read (they are small and hold the ids); only the
+  // kept keyframes' keypoints and strings are decoded.
   BinaryReader r = header;
-  keyframes_.resize(num_keyframes);
-  feature_offset_.resize(num_keyframes);
-  feature_count_.resize(num_keyframes);
-  std::vector<std::pair<uint64_t, std::pair<uint32_t, uint32_t>>> string_refs(num_keyframes);
+  struct Record {
+    Keyframe keyframe;
+    uint64_t feature_offset = 0;
+    uint32_t feature_count = 0;
+    uint64_t string_offset = 0;
+    uint32_t source_len = 0, image_len = 0;
+  };
+  std::vector<Record> records(num_keyframes);
+  std::vector<int32_t> ids(num_keyframes);
   for (uint64_t i = 0; i < num_keyframes; ++i) {
-    Keyframe& k = keyframes_[i];
+    Record& rec = records[i];
+    Keyframe& k = rec.keyframe;
     k.id = r.Get<int32_t>();
     k.crop_channel = r.Get<int32_t>();
     k.crop.x = r.Get<int32_t>();
@@ -243,49 +266,72 @@ void Database::DecodeKeyframes(std::shared_ptr<const MappedFile> file, const std
     pose.translation = Eigen::Vector3d(tx, ty, tz);
     pose.rotation = Eigen::Quaterniond(qw, qx, qy, qz);
     if (has_pose) k.pose = pose;
-    feature_offset_[i] = r.Get<uint64_t>();
-    feature_count_[i] = r.Get<uint32_t>();
-    const uint32_t source_len = r.Get<uint32_t>();
-    const uint64_t string_offset = r.Get<uint64_t>();
-    const uint32_t image_len = r.Get<uint32_t>();
+    rec.feature_offset = r.Get<uint64_t>();
+    rec.feature_count = r.Get<uint32_t>();
+    rec.source_len = r.Get<uint32_t>();
+    rec.string_offset = r.Get<uint64_t>();
+    rec.image_len = r.Get<uint32_t>();
     r.Get<uint32_t>();
-    string_refs[i] = {string_offset, {source_len, image_len}};
-    if (feature_offset_[i] + feature_count_[i] > num_features) {
+    if (rec.feature_offset > num_features ||
+        rec.feature_count > num_features - rec.feature_offset) {
       PLACEDB_THROW_RUNTIME(path, ": keyframe ", k.id, " refers to features beyond the file");
     }
+    if (rec.string_offset > string_bytes ||
+        uint64_t{rec.source_len} + rec.image_len > string_bytes - rec.string_offset) {
+      PLACEDB_THROW_RUNTIME(path, ": keyframe ", k.id, " refers to strings beyond the file");
+    }
+    ids[i] = k.id;
   }
-  keypoints_.resize(num_features);
-  laplacian_.resize(num_features);
-  for (uint64_t i = 0; i < num_features; ++i) {
-    cv::KeyPoint& kp = keypoints_[i];
-    kp.pt.x = r.Get<float>();
-    kp.pt.y = r.Get<float>();
-    kp.size = r.Get<float>();
-    kp.angle = r.Get<float>();
-    kp.response = r.Get<float>();
-    kp.octave = r.Get<int32_t>();
-    kp.class_id = r.Get<int32_t>();
-    laplacian_[i] = kp.class_id < 0 ? -1 : 1;
+  {
+    std::unordered_set<int32_t> seen;
+    for (const int32_t id : ids) {
+      if (!seen.insert(id).second)
+        PLACEDB_THROW_RUNTIME(path, ": keyframe id ", id, " appears twice");
+    }
   }
-  r.Align(kDescriptorAlignment);
+  const std::vector<size_t> keep = SelectKeyframes(subset, num_keyframes, ids);
+  const size_t keypoints_at = r.position();
+  constexpr size_t kKeypointBytes = 28;
+  size_t descriptors_at = keypoints_at + num_features * kKeypointBytes;
+  descriptors_at =
+      (descriptors_at + kDescriptorAlignment - 1) / kDescriptorAlignment * kDescriptorAlignment;
+  const size_t strings_at = descriptors_at + num_features * row_bytes;
+  size_t kept_features = 0;
+  for (const size_t i : keep) kept_features += records[i].feature_count;
+  keyframes_.reserve(keep.size());
+  keypoints_.reserve(kept_features);
+  laplacian_.reserve(kept_features);
+  for (const size_t i : keep) {
+    Record& rec = records[i];
+    BinaryReader kr(bytes.data() + keypoints_at + rec.feature_offset * kKeypointBytes,
+                    rec.feature_count * kKeypointBytes, path);
+    row_offset_.push_back(rec.feature_offset);
+    local_offset_.push_back(keypoints_.size());
+    feature_count_.push_back(rec.feature_count);
+    for (uint32_t f = 0; f < rec.feature_count; ++f) {
+      cv::KeyPoint kp;
+      kp.pt.x = kr.Get<float>();
+      kp.pt.y = kr.Get<float>();
+      kp.size = kr.Get<float>();
+      kp.angle = kr.Get<float>();
+      kp.response = kr.Get<float>();
+      kp.octave = kr.Get<int32_t>();
+      kp.class_id = kr.Get<int32_t>();
+      keypoints_.push_back(kp);
+      laplacian_.push_back(kp.class_id < 0 ? -1 : 1);
+    }
+    const char* strings = bytes.data() + strings_at + rec.string_offset;
+    rec.keyframe.source.assign(strings, rec.source_len);
+    rec.keyframe.image_file.assign(strings + rec.source_len, rec.image_len);
+    index_of_id_.emplace(rec.keyframe.id, static_cast<int>(keyframes_.size()));
+    keyframes_.push_back(std::move(rec.keyframe));
+  }
   // The descriptors stay where they are, in the mapping (32-byte aligned in
   // the file, and mmap returns page-aligned memory).
-  mapped_descriptors_ = reinterpret_cast<const uint8_t*>(file->data()) + r.position();
-  r.Skip(num_features * row_bytes);
+  mapped_descriptors_ = reinterpret_cast<const uint8_t*>(file->data()) + descriptors_at;
   mapping_ = std::move(file);
-  std::string strings(string_bytes, '\0');
-  r.GetBytes(strings.data(), strings.size());
-  for (uint64_t i = 0; i < num_keyframes; ++i) {
-    const auto& [offset, lens] = string_refs[i];
-    if (offset + lens.first + lens.second > strings.size()) {
-      PLACEDB_THROW_RUNTIME(path, ": string table reference out of range");
-    }
-    keyframes_[i].source = strings.substr(offset, lens.first);
-    keyframes_[i].image_file = strings.substr(offset + lens.first, lens.second);
-    if (!index_of_id_.emplace(keyframes_[i].id, static_cast<int>(i)).second) {
-      PLACEDB_THROW_RUNTIME(path, ": keyframe id ", keyframes_[i].id, " appears twice");
-    }
-  }
+  subset_ = subset;
+  keyframes_in_file_ = num_keyframes;
 }
 
 void Database::Save(const std::string& dir) const {
@@ -299,13 +345,15 @@ void Database::Save(const std::string& dir) const {
   manifest["descriptor_bytes"] = descriptor_bytes_;
   manifest["counts"]["keyframes"] = keyframes_.size();
   manifest["counts"]["features"] = keypoints_.size();
+  if (!subset_.all()) manifest["subset_of"] = {{"subset", subset_.Describe()}};
   manifest["files"]["keyframes"] = kKeyframesFile;
   manifest["files"]["keyframes_bytes"] = bytes.size();
   manifest["files"]["keyframes_crc32"] = Crc32(bytes.data(), bytes.size());
   WriteFileAtomic((fs::path(dir) / kManifestFile).string(), manifest.dump(2) + "\n");
 }
 
-Database Database::Load(const std::string& dir) {
+Database Database::Load(const std::string& dir, const KeyframeSubset& subset) {
+  PLACEDB_CHECK_OPTIONS(subset);
   std::error_code ec;
   if (!fs::is_directory(dir, ec))
     PLACEDB_THROW_RUNTIME("no database at ", dir, " (not a directory)");
@@ -349,13 +397,13 @@ Database Database::Load(const std::string& dir) {
     PLACEDB_THROW_RUNTIME("database ", dir, " is incomplete: ", kKeyframesFile, " is missing");
   }
   Database db;
-  db.DecodeKeyframes(MappedFile::Open(bin_path), bin_path);
+  db.DecodeKeyframes(MappedFile::Open(bin_path), bin_path, subset);
   if (manifest_type != FeatureTypeName(db.feature_type_)) {
     PLACEDB_THROW_RUNTIME(dir, ": manifest says '", manifest_type, "' features but ",
                           kKeyframesFile, " holds '", FeatureTypeName(db.feature_type_),
                           "' features (corrupted database)");
   }
-  if (manifest_keyframes && *manifest_keyframes != db.keyframes_.size()) {
+  if (manifest_keyframes && *manifest_keyframes != db.keyframes_in_file_) {
     PLACEDB_THROW_RUNTIME(dir, ": manifest and ", kKeyframesFile,
                           " disagree on the number of keyframes (corrupted database)");
   }

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "placedb/feature/types.h"
+#include "placedb/index/keyframe_subset.h"
 #include "placedb/match/ratio_matcher.h"
 #include "placedb/util/mapped_file.h"
 #include "placedb/util/pose.h"
@@ -55,9 +56,14 @@ class Database {
 
   FeatureType feature_type() const { return feature_type_; }
   int descriptor_bytes() const { return descriptor_bytes_; }
+  // Keyframes (and their features) in this database: all of the file's, or
+  // the subset it was opened with.
   size_t size() const { return keyframes_.size(); }
   bool empty() const { return keyframes_.empty(); }
   size_t num_features() const { return keypoints_.size(); }
+  // What Load kept of the file, and how many keyframes the file holds.
+  const KeyframeSubset& subset() const { return subset_; }
+  size_t keyframes_in_file() const { return keyframes_in_file_; }
 
   const Keyframe& keyframe(size_t index) const { return keyframes_[index]; }
   const std::vector<Keyframe>& keyframes() const { return keyframes_; }
@@ -83,10 +89,13 @@ class Database {
   // each file via temporary file + fsync + rename, manifest last.
   void Save(const std::string& dir) const;
 
-  // Opens a database directory. Throws std::runtime_error with a clear
-  // message for a missing, truncated, corrupted (checksum), wrong-magic or
-  // wrong-version database, or one whose manifest and binary disagree.
-  static Database Load(const std::string& dir);
+  // Opens a database directory, or only `subset` of its keyframes: the others'
+  // keypoints and strings are not decoded, their descriptors never touched.
+  // Throws std::runtime_error with a clear message for a missing, truncated,
+  // corrupted (checksum), wrong-magic or wrong-version database, or one whose
+  // manifest and binary disagree; std::invalid_argument for a bad subset (an
+  // id that is not in the file). Saving a subset writes just that subset.
+  static Database Load(const std::string& dir, const KeyframeSubset& subset = KeyframeSubset());
 
   // Name of the binary file inside the database directory.
   static constexpr const char* kKeyframesFile = "keyframes.bin";
@@ -94,7 +103,8 @@ class Database {
 
  private:
   std::string EncodeKeyframes() const;
-  void DecodeKeyframes(std::shared_ptr<const MappedFile> file, const std::string& path);
+  void DecodeKeyframes(std::shared_ptr<const MappedFile> file, const std::string& path,
+                       const KeyframeSubset& subset);
   // Start of the flat descriptor array: owned, or inside the mapped file.
   const uint8_t* DescriptorData() const {
     return mapping_ ? mapped_descriptors_ : descriptors_.data();
@@ -104,8 +114,12 @@ class Database {
   int descriptor_bytes_ = 32;
   std::vector<Keyframe> keyframes_;
   std::unordered_map<int32_t, int> index_of_id_;  // keyframe id -> index
-  // Flat feature storage: keyframe i owns rows [offset_[i], offset_[i] + count_[i]).
-  std::vector<uint64_t> feature_offset_;
+  // Flat feature storage: keyframe i owns descriptor rows [row_offset_[i],
+  // row_offset_[i] + feature_count_[i]) of the descriptor array (the file's,
+  // when mapped), and keypoints / Laplacian signs from local_offset_[i] on.
+  // The two offsets differ only for a subset of a mapped file.
+  std::vector<uint64_t> row_offset_;
+  std::vector<uint64_t> local_offset_;
   std::vector<uint32_t> feature_count_;
   std::vector<cv::KeyPoint> keypoints_;
   // num_features * descriptor_bytes. A loaded database uses the descriptors
@@ -116,6 +130,8 @@ class Database {
   const uint8_t* mapped_descriptors_ = nullptr;
   std::vector<int8_t> laplacian_;  // SURF: sign of the Laplacian per feature
   nlohmann::json info_ = nlohmann::json::object();
+  KeyframeSubset subset_;
+  size_t keyframes_in_file_ = 0;
 };
 
 }  // namespace placedb

@@ -233,6 +233,96 @@ TEST(DatabaseTest, KeyframeToOriginal) {
   EXPECT_FLOAT_EQ(same.y, 7.25f);
 }
 
+// A subset opened from the file holds exactly those keyframes, with the same
+// records, keypoints, descriptors and Laplacian signs as the whole file has
+// for them; the others are not there. Partitions of every scheme cover the
+// file once.
+void ExpectSubsetOf(const Database& whole, const Database& part) {
+  for (size_t i = 0; i < part.size(); ++i) {
+    const int w = whole.IndexOfId(part.keyframe(i).id);
+    ASSERT_GE(w, 0);
+    ExpectKeyframesEqual(whole.keyframe(w), part.keyframe(i));
+    testing_util::ExpectSameKeypoints(whole.Keypoints(w), part.Keypoints(i));
+    const DescriptorBlock a = whole.Descriptors(w), b = part.Descriptors(i);
+    ASSERT_EQ(a.rows, b.rows);
+    if (a.rows > 0) {
+      EXPECT_EQ(0, std::memcmp(a.data, b.data, static_cast<size_t>(a.rows) * a.row_bytes));
+    }
+    if (a.laplacian != nullptr && a.rows > 0) {
+      EXPECT_EQ(0, std::memcmp(a.laplacian, b.laplacian, a.rows));
+    }
+  }
+}
+
+TEST(DatabaseTest, SubsetsOpenOnlyTheirKeyframes) {
+  ExtractorOptions surf;
+  surf.type = FeatureType::kSurf;
+  surf.surf.max_features = 60;
+  for (const ExtractorOptions& options : {ExtractorOptions(), surf}) {
+    TempDir tmp;
+    MakeDatabase(options, 7, true).Save(tmp.Path());
+    const Database whole = Database::Load(tmp.Path());
+    ASSERT_EQ(whole.size(), 7u);
+    for (const PartitionScheme scheme :
+         {PartitionScheme::kContiguous, PartitionScheme::kInterleaved}) {
+      for (int parts : {1, 2, 3, 7, 9}) {
+        size_t keyframes = 0, features = 0;
+        for (int p = 0; p < parts; ++p) {
+          const Database part =
+              Database::Load(tmp.Path(), KeyframeSubset::Partition(p, parts, scheme));
+          EXPECT_EQ(part.keyframes_in_file(), 7u);
+          ExpectSubsetOf(whole, part);
+          for (size_t i = 0; i < part.size(); ++i) {
+            EXPECT_TRUE(InPartition(whole.IndexOfId(part.keyframe(i).id), 7, p, parts, scheme));
+          }
+          keyframes += part.size();
+          features += part.num_features();
+        }
+        EXPECT_EQ(keyframes, 7u) << parts << " parts";
+        EXPECT_EQ(features, whole.num_features());
+      }
+    }
+    // Contiguous partition 1 of 3 of 7 keyframes: indices [7/3, 14/3) = 2, 3
+    // (ids 30, 40).
+    const Database middle = Database::Load(tmp.Path(), KeyframeSubset::Partition(1, 3));
+    ASSERT_EQ(middle.size(), 2u);
+    EXPECT_EQ(middle.keyframe(0).id, 30);
+    EXPECT_EQ(middle.keyframe(1).id, 40);
+    // An id list, in any order, duplicates ignored.
+    const Database ids = Database::Load(tmp.Path(), KeyframeSubset::Ids({60, 10, 60}));
+    ASSERT_EQ(ids.size(), 2u);
+    EXPECT_EQ(ids.keyframe(0).id, 10);
+    EXPECT_EQ(ids.keyframe(1).id, 60);
+    EXPECT_EQ(ids.IndexOfId(60), 1);
+    EXPECT_EQ(ids.IndexOfId(20), -1);
+    ExpectSubsetOf(whole, ids);
+    EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+        [&] {
+          Database::Load(tmp.Path(), KeyframeSubset::Ids({10, 15}));
+        },
+        "keyframe id 15 is not in the database"));
+    EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+        [&] { Database::Load(tmp.Path(), KeyframeSubset::Partition(3, 3)); }, "part must be in"));
+    // A subset saved is a database of that subset; it grows like any other.
+    TempDir saved;
+    Database copy = ids;
+    copy.Save(saved.Path());
+    const Database reloaded = Database::Load(saved.Path());
+    ExpectDatabasesEqual(ids, reloaded);
+    FeatureSet extra;
+    extra.type = options.type;
+    extra.keypoints = whole.Keypoints(3);
+    const DescriptorBlock block = whole.Descriptors(3);
+    extra.descriptors =
+        options.type == FeatureType::kOrb
+            ? cv::Mat(block.rows, 32, CV_8U, const_cast<uint8_t*>(block.data)).clone()
+            : cv::Mat(block.rows, 64, CV_32F, const_cast<uint8_t*>(block.data)).clone();
+    copy.AddKeyframe(whole.keyframe(3), extra);  // copy on write of a mapped subset
+    ASSERT_EQ(copy.size(), 3u);
+    ExpectSubsetOf(whole, copy);
+  }
+}
+
 // A saved 3-keyframe ORB database each corruption test starts from.
 class DatabaseFileTest : public ::testing::Test {
  protected:

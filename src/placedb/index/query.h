@@ -1,60 +1,135 @@
-// Answers a query frame: match its descriptors against keyframes (all of
-// them, exhaustively), rank keyframes by good matches, return the top k with
-// the best keyframe's pose and the time taken.
+// The query pipeline and its result:
+//
+//   retrieve (which keyframes; a Retriever) -> match (ratio test, one-to-one,
+//   sparse-keyframe guard; MatchDescriptors) -> verify (USAC on the best
+//   candidates' matches; VerifyMatches) -> decide (a score threshold gives
+//   "no match / new place").
+//
+// QueryDatabase runs it on one Database (or a restriction of it), on one
+// thread or a pool: the answer does not depend on the number of threads.
+// MergeQueryResults is the voting step: it merges the partial results of
+// disjoint partitions (threads, processes, ROS worker nodes) into the answer
+// the whole database gives. Both are pure library code, tested without any
+// transport; QueryResult converts to and from JSON for the wire and reports.
 #pragma once
 
-#include <opencv2/core.hpp>
+#include <cstdint>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
 
-#include "placedb/feature/extractor.h"
 #include "placedb/index/database.h"
-#include "placedb/index/ranking.h"
+#include "placedb/index/retrieval.h"
+#include "placedb/match/geometric_verification.h"
 #include "placedb/match/ratio_matcher.h"
+#include "placedb/util/pose.h"
 
 namespace placedb {
 
 class ThreadPool;
 
 struct QueryOptions {
-  // Length of the ranked list returned. Default 5.
+  // Length of the ranked list returned. Range [1, 10000]. Default 5.
   int top_k = 5;
-  // Ratio test and SURF sign rejection.
-  MatchOptions match;
-  // Keyframes with fewer good matches are not ranked. Default 1.
+  // Keyframes with fewer matches than this are not ranked. Range [1, 100000].
+  // Default 1.
   int min_matches = 1;
+  // Retrieve stage: which keyframes are examined.
+  RetrievalOptions retrieval;
+  // Match stage: ratio test, one-to-one, sparse-keyframe guard.
+  MatchOptions match;
+  // Verify stage: USAC on the best candidates; the inliers become the score.
+  VerifyOptions verify;
+  // Decide stage: the best keyframe is the answer when its score (inliers when
+  // verified, else matches) is at least this; else "no match / new place".
+  // Range [0, 100000]. Default 12.
+  double min_score = 12.0;
 
   std::string Check() const;
+  // The options a partition (thread, process, worker node) runs with so that
+  // MergeQueryResults can rebuild the whole database's answer exactly: the
+  // ranked list keeps every verified candidate, not just the top k.
+  QueryOptions ForPartition() const;
+};
+
+// One keyframe of an answer.
+struct RankedKeyframe {
+  int32_t keyframe_id = 0;
+  // What the ranking uses: num_inliers when verified, else num_matches.
+  double score = 0.0;
+  int num_matches = 0;   // matches that passed the match stage
+  int num_inliers = -1;  // geometric inliers; -1 when not verified
+  bool verified() const { return num_inliers >= 0; }
+  std::optional<Pose> pose;  // the keyframe's pose (its map coordinates), when known
+  double timestamp = -1.0;   // of the keyframe's source frame, -1 when unknown
+  std::string source;        // the keyframe's source image
+  std::string stored_image;  // its stored PNG (database dir joined), "" when none
+
+  bool operator==(const RankedKeyframe& o) const;
+};
+
+// Milliseconds spent in each stage of one query.
+struct StageTimes {
+  double extract_ms = 0.0;  // query feature extraction (0 when features were given)
+  double retrieve_ms = 0.0;
+  double match_ms = 0.0;
+  double verify_ms = 0.0;
+  double total_ms = 0.0;
 };
 
 struct QueryResult {
-  // Best first; only keyframes with at least min_matches good matches.
-  std::vector<ScoredKeyframe> ranked;
+  // Best first, at most top_k: with verification, the verified candidates by
+  // inliers (then matches, then lower id); without, by matches (then id).
+  std::vector<RankedKeyframe> ranked;
+  // The decision: ranked[0] is the answer when true; false means "no match /
+  // new place" (nothing ranked, or the best score is below min_score).
+  bool matched = false;
   int num_query_features = 0;
-  double extract_ms = 0.0;  // feature extraction of the query image
-  double match_ms = 0.0;    // matching and ranking
-  double total_ms = 0.0;
+  size_t num_keyframes = 0;  // in the database (partition, restriction) searched
+  size_t num_examined = 0;   // keyframes the match stage compared
+  size_t num_verified = 0;   // keyframes the verify stage ran on
+  StageTimes times;
 
-  bool found() const { return !ranked.empty(); }
+  // The answer, or nullptr for "no match".
+  const RankedKeyframe* best() const { return matched ? &ranked.front() : nullptr; }
 };
 
-// Ranks the keyframes with indices [begin, end) of `db` for the query's
-// descriptors: the partial top-k of one partition.
-std::vector<ScoredKeyframe> RankPartition(const Database& db, const DescriptorBlock& query,
-                                          size_t begin, size_t end, const QueryOptions& options);
+// JSON of a result (for the CLI, reports and the wire) and back. from_json
+// validates everything and throws std::invalid_argument naming the field.
+void to_json(nlohmann::json& j, const QueryResult& r);
+void from_json(const nlohmann::json& j, QueryResult& r);
+void to_json(nlohmann::json& j, const RankedKeyframe& r);
+void from_json(const nlohmann::json& j, RankedKeyframe& r);
 
-// Matches already-extracted query features against the whole database. With
-// a pool of N threads, the keyframes are split into N partitions whose
-// partial lists are merged by MergeRankedLists: the same answer as one
-// thread. Throws std::invalid_argument for features of another type than
-// the database's.
-QueryResult QueryFeatures(const Database& db, const FeatureSet& query, const QueryOptions& options,
-                          ThreadPool* pool = nullptr);
+// Throws std::invalid_argument unless `features` can be matched against `db`:
+// one descriptor row per keypoint, the database's descriptor type and width,
+// contiguous rows, finite keypoint coordinates.
+void ValidateQueryFeatures(const FeatureSet& features, const Database& db);
 
-// Extracts the query image's features with `extractor` (which must produce
-// the database's feature type) and matches them.
-QueryResult QueryImage(const Database& db, const FeatureExtractor& extractor, const cv::Mat& image,
-                       const QueryOptions& options, ThreadPool* pool = nullptr);
+// Where and how QueryDatabase runs.
+struct QueryContext {
+  // Retrieve stage; nullptr: exhaustive.
+  const Retriever* retriever = nullptr;
+  // Restriction to these keyframe indices (a partition, a cluster, BoW
+  // candidates); nullptr: all. Out-of-range indices are invalid input.
+  const std::vector<uint32_t>* among = nullptr;
+  // Matching and verification spread over this pool; nullptr: this thread.
+  ThreadPool* pool = nullptr;
+  // Folder the keyframes' stored images are relative to ("": left relative).
+  std::string image_dir;
+};
+
+// Runs retrieve -> match -> verify -> decide for already-extracted features.
+QueryResult QueryDatabase(const Database& db, const FeatureSet& query, const QueryOptions& options,
+                          const QueryContext& context = QueryContext());
+
+// The voting step. `parts` are results of disjoint partitions of one database,
+// each computed with options.ForPartition(); the merge ranks and decides as
+// QueryDatabase on the whole database would (the same ranked list and
+// decision). Counts add up; stage times are the slowest part's (the parts
+// run in parallel). Throws std::invalid_argument when a keyframe appears in
+// two parts or verified and unverified entries are mixed.
+QueryResult MergeQueryResults(const std::vector<QueryResult>& parts, const QueryOptions& options);
 
 }  // namespace placedb

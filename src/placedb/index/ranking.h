@@ -1,6 +1,6 @@
-// Ranked lists of keyframes and the pure function that merges partial lists.
-// The same merge serves partitions searched by threads and (later) by worker
-// nodes: it is the voting step, tested without any transport.
+// Plain ranked lists of {keyframe id, score}: the form baselines and
+// comparisons use. (The query pipeline's answer is QueryResult, query.h,
+// and its voting step MergeQueryResults.)
 #pragma once
 
 #include <cstdint>
@@ -29,12 +29,5 @@ bool RanksBefore(const ScoredKeyframe& a, const ScoredKeyframe& b);
 
 // The best `k` of `list` in ranking order (partial_sort); k <= 0 keeps all.
 std::vector<ScoredKeyframe> TopK(std::vector<ScoredKeyframe> list, int k);
-
-// Merges partial top-k lists into the global top-k. A keyframe present in
-// several lists keeps its highest score. When the partial lists cover
-// disjoint keyframes and each is the top-k of its part, the result equals
-// the top-k of the whole.
-std::vector<ScoredKeyframe> MergeRankedLists(const std::vector<std::vector<ScoredKeyframe>>& lists,
-                                             int k);
 
 }  // namespace placedb

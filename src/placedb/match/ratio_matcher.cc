@@ -1,19 +1,20 @@
 #include "placedb/match/ratio_matcher.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
 #include "placedb/match/hamming.h"
 #include "placedb/match/l2_distance.h"
 #include "placedb/util/check.h"
+#include "placedb/util/options.h"
 
 namespace placedb {
 
 std::string MatchOptions::Check() const {
-  if (!(ratio > 0.0 && ratio <= 1.0)) return "ratio must be in (0, 1]";
-  if (max_hamming < 0) return "max_hamming must be >= 0";
-  if (max_l2 < 0) return "max_l2 must be >= 0";
-  return "";
+  return FirstReason({CheckRange("ratio", ratio, 0.0, 1.0, /*lo_open=*/true),
+                      CheckRange("max_hamming", max_hamming, 0, 256),
+                      CheckRange("max_l2", max_l2, 0.0, 2.0)});
 }
 
 DescriptorBlock MakeDescriptorBlock(const FeatureSet& set, std::vector<int8_t>* laplacian) {
@@ -23,6 +24,9 @@ DescriptorBlock MakeDescriptorBlock(const FeatureSet& set, std::vector<int8_t>* 
   block.row_bytes = static_cast<int>(set.descriptors.cols * set.descriptors.elemSize());
   PLACEDB_CHECK(set.descriptors.empty() || set.descriptors.isContinuous(),
                 "descriptors must be stored contiguously");
+  PLACEDB_CHECK(set.descriptors.rows == static_cast<int>(set.keypoints.size()),
+                "one descriptor per keypoint expected (", set.keypoints.size(), " keypoints, ",
+                set.descriptors.rows, " descriptor rows)");
   block.data = set.descriptors.empty() ? nullptr : set.descriptors.ptr<uint8_t>();
   if (set.type == FeatureType::kSurf && laplacian != nullptr) {
     laplacian->resize(set.keypoints.size());
@@ -36,51 +40,97 @@ DescriptorBlock MakeDescriptorBlock(const FeatureSet& set, std::vector<int8_t>* 
 
 namespace {
 
-int CountOrb(const DescriptorBlock& query, const DescriptorBlock& db, double ratio, int max_hamming,
-             std::vector<cv::DMatch>* matches) {
-  const uint32_t limit = max_hamming > 0 ? static_cast<uint32_t>(max_hamming) : UINT32_MAX;
-  int good = 0;
-  for (int i = 0; i < query.rows; ++i) {
-    const TwoNearest nn = TwoNearestHamming(query.data + static_cast<size_t>(i) * query.row_bytes,
-                                            db.data, db.rows, db.row_bytes);
-    if (nn.best_index < 0 || nn.best > limit) continue;
-    // second == UINT32_MAX (one candidate) always passes.
-    if (static_cast<double>(nn.best) < ratio * static_cast<double>(nn.second)) {
-      ++good;
-      if (matches) matches->emplace_back(i, nn.best_index, static_cast<float>(nn.best));
-    }
+// The distance of one descriptor family: ORB's Hamming counts or SURF's
+// squared L2, with its limit and ratio test in the same (squared) units.
+struct OrbMetric {
+  using Distance = uint32_t;
+  uint32_t limit;
+  double ratio;
+  OrbMetric(const MatchOptions& o)
+      : limit(o.max_hamming > 0 ? static_cast<uint32_t>(o.max_hamming) : UINT32_MAX),
+        ratio(o.ratio) {}
+  TwoNearestOf<uint32_t> Nearest(const DescriptorBlock& from, int row,
+                                 const DescriptorBlock& in) const {
+    return TwoNearestHamming(from.Row(row), in.data, in.rows, in.row_bytes);
   }
-  return good;
-}
+  // second == UINT32_MAX (one candidate) always passes.
+  bool Passes(const TwoNearestOf<uint32_t>& nn) const {
+    return nn.best_index >= 0 && nn.best <= limit &&
+           static_cast<double>(nn.best) < ratio * static_cast<double>(nn.second);
+  }
+  float Reported(uint32_t d) const { return static_cast<float>(d); }
+};
 
-int CountSurf(const DescriptorBlock& query, const DescriptorBlock& db, double ratio, double max_l2,
-              bool use_sign, std::vector<cv::DMatch>* matches) {
-  const float limit =
-      max_l2 > 0 ? static_cast<float>(max_l2 * max_l2) : std::numeric_limits<float>::infinity();
-  const int dims = query.row_bytes / static_cast<int>(sizeof(float));
-  const double ratio2 = ratio * ratio;  // compare squared distances
-  const bool signs = use_sign && query.laplacian != nullptr && db.laplacian != nullptr;
-  const auto* q_all = reinterpret_cast<const float*>(query.data);
-  const auto* d_all = reinterpret_cast<const float*>(db.data);
-  int good = 0;
-  for (int i = 0; i < query.rows; ++i) {
-    const float* q = q_all + static_cast<size_t>(i) * dims;
-    const TwoNearestL2Result nn =
-        TwoNearestL2(q, d_all, db.rows, dims, signs ? db.laplacian : nullptr,
-                     signs ? query.laplacian[i] : int8_t{0});
-    if (nn.best_index < 0 || nn.best > limit) continue;
-    if (std::isinf(nn.second) || nn.best < ratio2 * nn.second) {
-      ++good;
-      if (matches) matches->emplace_back(i, nn.best_index, std::sqrt(nn.best));
-    }
+struct SurfMetric {
+  using Distance = float;
+  float limit;
+  double ratio2;  // squared distances are compared
+  bool signs;
+  SurfMetric(const MatchOptions& o, bool both_have_signs)
+      : limit(o.max_l2 > 0 ? static_cast<float>(o.max_l2 * o.max_l2)
+                           : std::numeric_limits<float>::infinity()),
+        ratio2(o.ratio * o.ratio),
+        signs(o.use_laplacian_sign && both_have_signs) {}
+  TwoNearestOf<float> Nearest(const DescriptorBlock& from, int row,
+                              const DescriptorBlock& in) const {
+    const int dims = in.row_bytes / static_cast<int>(sizeof(float));
+    return TwoNearestL2(reinterpret_cast<const float*>(from.Row(row)),
+                        reinterpret_cast<const float*>(in.data), in.rows, dims,
+                        signs ? in.laplacian : nullptr, signs ? from.laplacian[row] : int8_t{0});
   }
-  return good;
+  bool Passes(const TwoNearestOf<float>& nn) const {
+    return nn.best_index >= 0 && nn.best <= limit &&
+           (std::isinf(nn.second) || nn.best < ratio2 * nn.second);
+  }
+  float Reported(float d) const { return std::sqrt(d); }
+};
+
+template <typename Metric>
+int Match(const DescriptorBlock& query, const DescriptorBlock& db, const Metric& metric,
+          const MatchOptions& options, std::vector<cv::DMatch>* out) {
+  using Distance = typename Metric::Distance;
+  struct Tentative {
+    int q, t;
+    Distance d;
+  };
+  std::vector<Tentative> tentative;
+  for (int i = 0; i < query.rows; ++i) {
+    const auto nn = metric.Nearest(query, i, db);
+    if (metric.Passes(nn)) tentative.push_back({i, nn.best_index, nn.best});
+  }
+  if (options.one_to_one || options.cross_check) {
+    // The closest query descriptor per keyframe descriptor (ties: lower q).
+    std::sort(tentative.begin(), tentative.end(), [](const Tentative& a, const Tentative& b) {
+      if (a.t != b.t) return a.t < b.t;
+      if (a.d != b.d) return a.d < b.d;
+      return a.q < b.q;
+    });
+    tentative.erase(std::unique(tentative.begin(), tentative.end(),
+                                [](const Tentative& a, const Tentative& b) { return a.t == b.t; }),
+                    tentative.end());
+  }
+  if (options.cross_check) {
+    // q must be t's nearest among the query's descriptors and pass the ratio
+    // test there. (A mutual pair is also one-to-one.)
+    tentative.erase(std::remove_if(tentative.begin(), tentative.end(),
+                                   [&](const Tentative& m) {
+                                     const auto back = metric.Nearest(db, m.t, query);
+                                     return back.best_index != m.q || !metric.Passes(back);
+                                   }),
+                    tentative.end());
+  }
+  if (out != nullptr) {
+    std::sort(tentative.begin(), tentative.end(),
+              [](const Tentative& a, const Tentative& b) { return a.q < b.q; });
+    for (const Tentative& m : tentative) out->emplace_back(m.q, m.t, metric.Reported(m.d));
+  }
+  return static_cast<int>(tentative.size());
 }
 
 }  // namespace
 
-int CountRatioMatches(const DescriptorBlock& query, const DescriptorBlock& db,
-                      const MatchOptions& options, std::vector<cv::DMatch>* matches) {
+int MatchDescriptors(const DescriptorBlock& query, const DescriptorBlock& db,
+                     const MatchOptions& options, std::vector<cv::DMatch>* matches) {
   if (query.type != db.type) {
     PLACEDB_THROW_INVALID("cannot match ", FeatureTypeName(query.type), " descriptors against ",
                           FeatureTypeName(db.type), " descriptors");
@@ -91,8 +141,9 @@ int CountRatioMatches(const DescriptorBlock& query, const DescriptorBlock& db,
                           " bytes");
   }
   if (query.type == FeatureType::kOrb)
-    return CountOrb(query, db, options.ratio, options.max_hamming, matches);
-  return CountSurf(query, db, options.ratio, options.max_l2, options.use_laplacian_sign, matches);
+    return Match(query, db, OrbMetric(options), options, matches);
+  const bool signs = query.laplacian != nullptr && db.laplacian != nullptr;
+  return Match(query, db, SurfMetric(options, signs), options, matches);
 }
 
 }  // namespace placedb

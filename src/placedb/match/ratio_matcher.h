@@ -1,6 +1,17 @@
-// Nearest-neighbour matching of a query's descriptors against one keyframe's
-// descriptors with Lowe's ratio test: a query descriptor matches when its
-// nearest neighbour is clearly closer than the second nearest.
+// The match stage: nearest-neighbour matching of a query's descriptors
+// against one keyframe's descriptors.
+//
+// A query descriptor q matches keyframe descriptor t when
+//  1. t is q's nearest neighbour in the keyframe and passes Lowe's ratio test
+//     (clearly closer than the second nearest) and an absolute distance limit;
+//  2. (one_to_one) no other query descriptor is closer to t: many query
+//     descriptors cannot pile onto one keyframe descriptor;
+//  3. (cross_check) q is also t's nearest neighbour among all of the query's
+//     descriptors and passes the ratio test there. This is the guard for sparse
+//     keyframes: a keyframe with few descriptors (a small crop, a 1/16 resize)
+//     has a distant second neighbour, so its own ratio test lets almost any
+//     nearest neighbour through; the query has hundreds of descriptors, so the
+//     reverse test keeps its power.
 #pragma once
 
 #include <cstdint>
@@ -21,6 +32,8 @@ struct DescriptorBlock {
   // SURF only, optional: sign of the Laplacian per row (+1/-1). Descriptors
   // of opposite signs are never matched (a blob on dark vs light background).
   const int8_t* laplacian = nullptr;
+
+  const uint8_t* Row(int i) const { return data + static_cast<size_t>(i) * row_bytes; }
 };
 
 // A view of a FeatureSet (valid while the set lives). `laplacian` receives
@@ -28,30 +41,37 @@ struct DescriptorBlock {
 DescriptorBlock MakeDescriptorBlock(const FeatureSet& set, std::vector<int8_t>* laplacian);
 
 struct MatchOptions {
-  // Lowe's ratio: nearest distance < ratio x second-nearest. (0, 1]. Default 0.8.
+  // Lowe's ratio: nearest distance < ratio x second-nearest. Range (0, 1].
+  // Default 0.8.
   double ratio = 0.8;
   // ORB: a match also needs a Hamming distance of at most this many bits (of
   // 256); 0 disables the limit. Unrelated ORB descriptors lie ~128 bits
   // apart and true matches mostly under 50, so the limit removes the chance
   // matches whose number would otherwise grow with a keyframe's feature
-  // count. Default 64.
+  // count. Range [0, 256]. Default 64.
   int max_hamming = 64;
   // SURF: a match also needs an L2 distance of at most this (descriptors are
   // unit vectors, unrelated ones ~0.5-0.7 apart); 0 disables the limit.
-  // Default 0.25 (on data/rtabmap_loop with chroma crops: recall@1 0.86 at
-  // 0.25, 0.59 with no limit).
+  // Range [0, 2]. Default 0.25.
   double max_l2 = 0.25;
-  // Use the Laplacian sign to reject SURF candidates early. Default true.
+  // SURF: never match descriptors whose Laplacian signs differ. Default true.
   bool use_laplacian_sign = true;
+  // Each keyframe descriptor keeps at most one match, its closest query
+  // descriptor (ties: the lower query index). Default true.
+  bool one_to_one = true;
+  // The sparse-keyframe guard (see the top of this file): a match must also
+  // be mutual and pass the ratio test against the query's descriptors.
+  // Default true.
+  bool cross_check = true;
 
   std::string Check() const;
 };
 
-// Number of query descriptors whose nearest neighbour in `db` passes the
-// ratio test (a db block with one row: every nearest neighbour passes).
-// Appends the matches (queryIdx, trainIdx, distance) when `matches` is set.
+// Matches `query` against the descriptors `db` of one keyframe by the rules
+// above and returns the number of matches; appends them (queryIdx, trainIdx,
+// distance: Hamming bits or L2) to `matches` when given, in query order.
 // Throws std::invalid_argument when the blocks' types or widths differ.
-int CountRatioMatches(const DescriptorBlock& query, const DescriptorBlock& db,
-                      const MatchOptions& options, std::vector<cv::DMatch>* matches = nullptr);
+int MatchDescriptors(const DescriptorBlock& query, const DescriptorBlock& db,
+                     const MatchOptions& options, std::vector<cv::DMatch>* matches = nullptr);
 
 }  // namespace placedb

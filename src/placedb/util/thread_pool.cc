@@ -4,6 +4,10 @@
 #include <exception>
 
 namespace placedb {
+namespace {
+// The pool whose worker runs on this thread (nullptr elsewhere).
+thread_local const ThreadPool* current_pool = nullptr;
+}  // namespace
 
 int ThreadPool::HardwareThreads() {
   const unsigned n = std::thread::hardware_concurrency();
@@ -26,6 +30,7 @@ ThreadPool::~ThreadPool() {
 }
 
 void ThreadPool::WorkerLoop() {
+  current_pool = this;
   for (;;) {
     std::function<void()> task;
     {
@@ -41,8 +46,19 @@ void ThreadPool::WorkerLoop() {
 
 void ThreadPool::ParallelFor(size_t n, const std::function<void(size_t)>& fn) {
   if (n == 0) return;
-  if (n == 1 || workers_.size() <= 1) {
-    for (size_t i = 0; i < n; ++i) fn(i);
+  if (n == 1 || workers_.size() <= 1 || current_pool == this) {
+    // Inline: one item, one worker, or called from one of this pool's own
+    // tasks, where waiting for the other workers could deadlock (they may all
+    // be waiting the same way).
+    std::exception_ptr error;
+    for (size_t i = 0; i < n; ++i) {
+      try {
+        fn(i);
+      } catch (...) {
+        if (!error) error = std::current_exception();
+      }
+    }
+    if (error) std::rethrow_exception(error);
     return;
   }
   std::atomic<size_t> next{0};

@@ -24,6 +24,8 @@ class ThreadPool {
 
   // Runs fn(i) for i in [0, n) on the pool and waits for all of them. The
   // first exception thrown by any call is rethrown here (the others finish).
+  // Safe to call from several threads at once, and from inside a task of this
+  // pool (a nested call runs its items inline on the calling worker).
   void ParallelFor(size_t n, const std::function<void(size_t)>& fn);
 
   // Number of hardware threads (at least 1).

@@ -4,6 +4,7 @@
 
 #include <atomic>
 #include <stdexcept>
+#include <thread>
 #include <vector>
 
 namespace placedb {
@@ -32,6 +33,29 @@ TEST(ThreadPoolTest, RethrowsFirstError) {
   std::atomic<int> after{0};
   pool.ParallelFor(10, [&](size_t) { after++; });
   EXPECT_EQ(after.load(), 10);
+}
+
+// A task of the pool that calls ParallelFor on the same pool (a server passing
+// its pool down to a query) finishes instead of deadlocking, with every inner
+// index run once.
+TEST(ThreadPoolTest, NestedParallelForDoesNotDeadlock) {
+  ThreadPool pool(2);
+  std::vector<std::atomic<int>> hits(4 * 100);
+  pool.ParallelFor(4, [&](size_t outer) {
+    pool.ParallelFor(100, [&](size_t inner) { hits[outer * 100 + inner]++; });
+  });
+  for (const auto& h : hits) EXPECT_EQ(h.load(), 1);
+}
+
+// Two threads outside the pool may share it.
+TEST(ThreadPoolTest, ConcurrentCallersShareThePool) {
+  ThreadPool pool(2);
+  std::atomic<int> total{0};
+  std::thread a([&] { pool.ParallelFor(500, [&](size_t) { total++; }); });
+  std::thread b([&] { pool.ParallelFor(500, [&](size_t) { total++; }); });
+  a.join();
+  b.join();
+  EXPECT_EQ(total.load(), 1000);
 }
 
 }  // namespace

@@ -33,7 +33,8 @@ namespace placedb {
 
 struct SurfOptions {
   // Minimum Hessian determinant of a kept extremum, in squared grey levels
-  // (box means of a 0..255 image; same scale as OpenCV's SURF). Default 100.
+  // (box means of a 0..255 image; same scale as OpenCV's SURF). Range
+  // [0, 1e6]. Default 100.
   double hessian_threshold = 100.0;
   // Number of octaves (each doubles the filter sizes and the sampling step).
   // Default 4, range 1..8.
@@ -49,7 +50,7 @@ struct SurfOptions {
   // descriptor is computed in the image axes. Default false.
   bool upright = false;
   // Keep only the this many strongest keypoints (by response); 0 keeps all.
-  // Default 0.
+  // Range [0, 1000000]. Default 0.
   int max_features = 0;
 
   // "" when valid, else the reason.

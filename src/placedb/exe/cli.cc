@@ -1,0 +1,241 @@
+#include "placedb/exe/cli.h"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <iostream>
+
+#include "placedb/dataset/image_folder.h"
+#include "placedb/util/check.h"
+#include "placedb/util/file_io.h"
+
+namespace placedb {
+namespace cli {
+
+void SourceArgs::Add(CLI::App* cmd, const std::string& what) {
+  auto* images_opt = cmd->add_option(
+      "--images", images,
+      what + ": a folder of images (sorted by name) or a text file listing image paths");
+  auto* tum_opt =
+      cmd->add_option("--tum", tum, what + ": a TUM RGB-D folder (rgb.txt, groundtruth.txt)");
+  images_opt->excludes(tum_opt);
+  cmd->add_option("--first", first, "first image id to use (1-based position in the listing)")
+      ->capture_default_str();
+  cmd->add_option("--last", last, "last image id to use (0: to the end)")->capture_default_str();
+  cmd->add_option("--frame-size", frame_size,
+                  "resize every frame to WxH as it is read, to see how a smaller camera "
+                  "does (e.g. 160x120)");
+  cmd->add_option("--max-time-diff", tum_options.max_time_difference,
+                  "TUM: largest |dt| between a frame and its ground-truth pose, seconds [0, 3600]")
+      ->capture_default_str();
+  cmd->add_option("--tum-rgb-list", tum_options.rgb_list, "TUM: image list inside the folder")
+      ->capture_default_str();
+  cmd->add_option("--tum-groundtruth", tum_options.groundtruth,
+                  "TUM: ground-truth file inside the folder")
+      ->capture_default_str();
+}
+
+std::vector<Frame> SourceArgs::Read() const {
+  std::vector<Frame> frames;
+  if (!images.empty()) {
+    frames = ReadImages(images, first, last);
+  } else if (!tum.empty()) {
+    if (first < 1) PLACEDB_THROW_INVALID("--first must be >= 1, got ", first);
+    if (last < 0) PLACEDB_THROW_INVALID("--last must be >= 0 (0: to the end), got ", last);
+    frames = ReadTumSequence(tum, tum_options);
+    const size_t begin = static_cast<size_t>(first - 1);
+    const size_t end =
+        last == 0 ? frames.size() : std::min(frames.size(), static_cast<size_t>(last));
+    if (begin >= frames.size() || begin >= end)
+      PLACEDB_THROW_INVALID("--first/--last select no TUM frame (", frames.size(), " listed)");
+    frames = std::vector<Frame>(frames.begin() + static_cast<ptrdiff_t>(begin),
+                                frames.begin() + static_cast<ptrdiff_t>(end));
+  } else {
+    PLACEDB_THROW_INVALID("give --images DIR or --tum DIR");
+  }
+  if (!frame_size.empty()) ResizeFramesTo(&frames, ParseSize(frame_size, "--frame-size"));
+  return frames;
+}
+
+std::string SourceArgs::Describe() const {
+  std::string range;
+  if (first != 1 || last != 0) {
+    range = last == 0 ? fmt::format(" [{}..]", first) : fmt::format(" [{}..{}]", first, last);
+  }
+  const std::string size = frame_size.empty() ? "" : " at " + frame_size;
+  return (images.empty() ? "tum:" + tum : "images:" + images) + range + size;
+}
+
+cv::Size ParseSize(const std::string& text, const std::string& flag) {
+  const size_t x = text.find('x');
+  int w = 0, h = 0;
+  try {
+    size_t used_w = 0, used_h = 0;
+    if (x == std::string::npos) throw std::invalid_argument("no x");
+    w = std::stoi(text.substr(0, x), &used_w);
+    h = std::stoi(text.substr(x + 1), &used_h);
+    if (used_w != x || used_h != text.size() - x - 1) throw std::invalid_argument("trailing");
+  } catch (const std::exception&) {
+    PLACEDB_THROW_INVALID(flag, " takes WxH, e.g. 160x120 (got '", text, "')");
+  }
+  if (w < 16 || h < 16 || w > 16384 || h > 16384)
+    PLACEDB_THROW_INVALID(flag, ": each side must be in [16, 16384] (got ", text, ")");
+  return {w, h};
+}
+
+void AddThreadsOption(CLI::App* cmd, int& threads, const std::string& what) {
+  cmd->add_option("--threads", threads, what + " (0: one per core) [0, 1024]")
+      ->capture_default_str();
+}
+
+void AddExtractorOptions(CLI::App* cmd, ExtractorOptions& o) {
+  OrbOptions& orb = o.orb;
+  cmd->add_option("--orb-max-features", orb.max_features,
+                  "ORB: most keypoints per image [1, 100000]")
+      ->capture_default_str();
+  cmd->add_option("--orb-scale-factor", orb.scale_factor, "ORB: pyramid scale factor (1, 4]")
+      ->capture_default_str();
+  cmd->add_option("--orb-levels", orb.num_levels, "ORB: pyramid levels [1, 32]")
+      ->capture_default_str();
+  cmd->add_option("--orb-fast-threshold", orb.fast_threshold, "ORB: FAST threshold [1, 255]")
+      ->capture_default_str();
+  cmd->add_option("--orb-edge-threshold", orb.edge_threshold,
+                  "ORB: border without features, px [0, 512]")
+      ->capture_default_str();
+  cmd->add_option("--orb-patch-size", orb.patch_size, "ORB: BRIEF patch size, px [2, 512]")
+      ->capture_default_str();
+  SurfOptions& surf = o.surf;
+  cmd->add_option("--surf-hessian", surf.hessian_threshold, "SURF: Hessian threshold [0, 1e6]")
+      ->capture_default_str();
+  cmd->add_option("--surf-octaves", surf.num_octaves, "SURF: octaves [1, 8]")
+      ->capture_default_str();
+  cmd->add_option("--surf-layers", surf.num_octave_layers, "SURF: layers per octave [1, 8]")
+      ->capture_default_str();
+  cmd->add_flag("--surf-extended", surf.extended, "SURF: 128-d descriptors");
+  cmd->add_flag("--surf-upright", surf.upright, "SURF: U-SURF, no orientation");
+  cmd->add_option("--surf-max-features", surf.max_features,
+                  "SURF: most keypoints (0: all) [0, 1000000]")
+      ->capture_default_str();
+  cmd->add_option("--upscale-below", o.upscale_below,
+                  "small frames: upscale images whose shorter side is below this for "
+                  "extraction (0: never) [0, 4096]")
+      ->capture_default_str();
+}
+
+void AddCropOptions(CLI::App* cmd, CropOptions& c) {
+  cmd->add_option("--crop-percentile", c.percentile,
+                  "chroma crop: pixels above this percentile of a channel are concentrated "
+                  "[0, 99.9]")
+      ->capture_default_str();
+  cmd->add_option("--crop-sigma", c.smooth_sigma, "chroma crop: smoothing sigma, px [0, 50]")
+      ->capture_default_str();
+  cmd->add_option("--crop-padding", c.padding, "chroma crop: padding around a region, px [0, 4096]")
+      ->capture_default_str();
+  cmd->add_option("--crop-min-fast", c.min_fast_keypoints,
+                  "chroma crop: FAST corners a crop needs (the paper's 15) [0, 100000]")
+      ->capture_default_str();
+  cmd->add_option("--crop-fast-threshold", c.fast_threshold,
+                  "chroma crop: FAST threshold of the count [1, 255]")
+      ->capture_default_str();
+  cmd->add_option("--crop-fast-nonmax", c.fast_nonmax,
+                  "chroma crop: FAST non-maximum suppression (true/false)")
+      ->capture_default_str();
+  cmd->add_option("--crop-min-region", c.min_region_pixels,
+                  "chroma crop: smallest region that can become a crop, pixels [1, 1e8]")
+      ->capture_default_str();
+}
+
+void DatabaseArgs::Add(CLI::App* cmd, const std::string& threads_what) {
+  cmd->add_option("--db", dir, "database directory")->required();
+  cmd->add_option("--features", features, "expected feature type (must match the database's)")
+      ->check(CLI::IsMember({"orb", "surf"}));
+  if (!threads_what.empty()) AddThreadsOption(cmd, open.threads, threads_what);
+}
+
+PlaceDatabase DatabaseArgs::Open() const {
+  OpenOptions o = open;
+  if (!features.empty()) o.expected_features = ParseFeatureType(features);
+  return PlaceDatabase::Open(dir, o);
+}
+
+void QueryArgs::Add(CLI::App* cmd) {
+  QueryOptions& q = options;
+  cmd->add_option("--top-k", q.top_k, "length of the ranked list [1, 10000]")
+      ->capture_default_str();
+  cmd->add_option("--search", search, "retrieve stage: exhaustive")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"exhaustive"}));
+  cmd->add_option("--ratio", q.match.ratio, "Lowe's ratio test threshold (0, 1]")
+      ->capture_default_str();
+  cmd->add_option("--max-hamming", q.match.max_hamming,
+                  "ORB: largest Hamming distance of a match (0: no limit) [0, 256]")
+      ->capture_default_str();
+  cmd->add_option("--max-l2", q.match.max_l2,
+                  "SURF: largest L2 distance of a match (0: no limit) [0, 2]")
+      ->capture_default_str();
+  cmd->add_option("--laplacian-sign", q.match.use_laplacian_sign,
+                  "SURF: never match opposite Laplacian signs (true/false)")
+      ->capture_default_str();
+  cmd->add_option("--one-to-one", q.match.one_to_one,
+                  "a keyframe descriptor keeps only its closest query match (true/false)")
+      ->capture_default_str();
+  cmd->add_option("--cross-check", q.match.cross_check,
+                  "sparse-keyframe guard: matches must be mutual and pass the ratio test "
+                  "among the query's descriptors too (true/false)")
+      ->capture_default_str();
+  cmd->add_option("--min-matches", q.min_matches,
+                  "fewest matches for a keyframe to be ranked [1, 100000]")
+      ->capture_default_str();
+  cmd->add_flag("--verify,!--no-verify", q.verify.enabled,
+                "verify stage: RANSAC (USAC) on the best candidates, inliers are the score")
+      ->capture_default_str();
+  cmd->add_option("--verify-model", model, "fundamental or homography")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"fundamental", "homography"}));
+  cmd->add_option("--verify-candidates", q.verify.num_candidates,
+                  "keyframes verified (the best by matches) [1, 1000]")
+      ->capture_default_str();
+  cmd->add_option("--verify-error", q.verify.max_error_px,
+                  "largest inlier error, px of the query image (0, 100]")
+      ->capture_default_str();
+  cmd->add_option("--verify-confidence", q.verify.confidence, "RANSAC confidence [0.5, 0.999999]")
+      ->capture_default_str();
+  cmd->add_option("--verify-iterations", q.verify.max_iterations,
+                  "RANSAC iterations at most [1, 100000]")
+      ->capture_default_str();
+  cmd->add_option("--verify-seed", q.verify.seed, "RANSAC seed [0, 2^31)")->capture_default_str();
+  cmd->add_option("--min-score", q.min_score,
+                  "decide stage: the best keyframe is the answer when its score (inliers when "
+                  "verified, else matches) is at least this; else 'no match' [0, 100000]")
+      ->capture_default_str();
+}
+
+QueryOptions QueryArgs::Get() const {
+  QueryOptions q = options;
+  q.retrieval.method = ParseRetrievalMethod(search);
+  q.verify.model = ParseGeometricModel(model);
+  PLACEDB_CHECK_OPTIONS(q);
+  return q;
+}
+
+void WriteJson(const std::string& path, const nlohmann::json& j) {
+  if (path.empty()) return;
+  if (path == "-") {
+    std::cout << j.dump(2) << "\n";
+    return;
+  }
+  WriteFileAtomic(path, j.dump(2) + "\n");
+  spdlog::info("wrote {}", path);
+}
+
+std::string FormatPose(const std::optional<Pose>& pose) {
+  if (!pose) return "(no pose)";
+  const auto& t = pose->translation;
+  const auto& q = pose->rotation;
+  return fmt::format("t = ({:.4f}, {:.4f}, {:.4f}) m, q = ({:.4f}, {:.4f}, {:.4f}, {:.4f})", t.x(),
+                     t.y(), t.z(), q.x(), q.y(), q.z(), q.w());
+}
+
+}  // namespace cli
+}  // namespace placedb

@@ -1,0 +1,90 @@
+// What the sub-commands of the placedb binary share: the command interface,
+// flag groups bound straight onto the library's options structs (so --help
+// and the code cannot drift apart), and output helpers. Commands are thin:
+// they parse flags, call the library, print.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "placedb/dataset/frame.h"
+#include "placedb/dataset/tum.h"
+#include "placedb/feature/extractor.h"
+#include "placedb/image/feature_rich_crop.h"
+#include "placedb/index/place_database.h"
+#include "placedb/index/query.h"
+#include "placedb/util/pose.h"
+
+namespace placedb {
+namespace cli {
+
+class Command {
+ public:
+  virtual ~Command() = default;
+  // Adds the sub-command and its flags to `app`.
+  virtual CLI::App* Register(CLI::App& app) = 0;
+  // Runs it after parsing; returns the exit code, throws on errors.
+  virtual int Run() = 0;
+};
+
+std::unique_ptr<Command> MakeBuildCommand();
+std::unique_ptr<Command> MakeQueryCommand();
+std::unique_ptr<Command> MakeEvalCommand();
+std::unique_ptr<Command> MakeInfoCommand();
+std::unique_ptr<Command> MakeBenchCommand();
+
+// Where frames come from: an image folder / list, or a TUM RGB-D folder,
+// with an id range and optionally a simulated camera size.
+struct SourceArgs {
+  std::string images;
+  std::string tum;
+  int first = 1;
+  int last = 0;
+  std::string frame_size;  // "WxH" or ""
+  TumOptions tum_options;
+
+  void Add(CLI::App* cmd, const std::string& what);
+  std::vector<Frame> Read() const;
+  // "images:DIR [41..84]", "tum:DIR [5..]".
+  std::string Describe() const;
+};
+
+// --threads T for every command: 0 = one thread per core.
+void AddThreadsOption(CLI::App* cmd, int& threads, const std::string& what);
+void AddExtractorOptions(CLI::App* cmd, ExtractorOptions& options);
+void AddCropOptions(CLI::App* cmd, CropOptions& options);
+// Every field of QueryOptions (retrieve, match, verify, decide) as flags.
+struct QueryArgs {
+  QueryOptions options;
+  std::string search = RetrievalMethodName(options.retrieval.method);
+  std::string model = GeometricModelName(options.verify.model);
+
+  void Add(CLI::App* cmd);
+  // The options with the named choices applied.
+  QueryOptions Get() const;
+};
+
+// --db DIR, --features (the type the caller expects) and, when
+// `threads_what` is not empty, --threads: the database a command opens.
+struct DatabaseArgs {
+  std::string dir;
+  std::string features;
+  OpenOptions open;
+
+  void Add(CLI::App* cmd, const std::string& threads_what);
+  PlaceDatabase Open() const;
+};
+
+// Writes JSON to `path` atomically ("-": stdout; "": nothing).
+void WriteJson(const std::string& path, const nlohmann::json& j);
+// "t = (x, y, z) m, q = (x, y, z, w)" or "(no pose)".
+std::string FormatPose(const std::optional<Pose>& pose);
+// "WxH" -> size; throws std::invalid_argument.
+cv::Size ParseSize(const std::string& text, const std::string& flag);
+
+}  // namespace cli
+}  // namespace placedb

@@ -1,0 +1,83 @@
+// placedb eval: the paper's experiment against ground truth.
+#include <fmt/format.h>
+
+#include "placedb/dataset/match_truth.h"
+#include "placedb/eval/evaluate.h"
+#include "placedb/exe/cli.h"
+#include "placedb/util/check.h"
+
+namespace placedb {
+namespace cli {
+namespace {
+
+class EvalCommand : public Command {
+ public:
+  CLI::App* Register(CLI::App& app) override {
+    auto* cmd = app.add_subcommand(
+        "eval",
+        "evaluate a database on query frames with ground truth (recall, precision, "
+        "latency, size)");
+    db_.Add(cmd, "threads matching and verifying each query");
+    source_.Add(cmd, "query frames");
+    cmd->add_option("--truth", truth_csv_,
+                    "CSV of true matches (query_id,keyframe ids); with --images");
+    cmd->add_option("--max-dist", thresholds_.max_distance_m,
+                    "poses: a keyframe within this distance (m) ... (0, 1e6]")
+        ->capture_default_str();
+    cmd->add_option("--max-angle", thresholds_.max_angle_deg,
+                    "... and this viewing angle (deg) of the query is correct (0, 180]")
+        ->capture_default_str();
+    auto* queries = cmd->add_option("--queries", options_.num_queries,
+                                    "number of random queries (the paper's 50) [1, 1000000]")
+                        ->capture_default_str();
+    auto* all = cmd->add_flag("--all", options_.all, "use every query with ground truth");
+    all->excludes(queries);
+    cmd->add_option("--seed", options_.seed, "seed of the random query selection")
+        ->capture_default_str();
+    query_.Add(cmd);
+    cmd->add_flag("--quiet", quiet_, "no progress bar");
+    cmd->add_option("--json", json_, "write the report as JSON to this file ('-': stdout)");
+    return cmd;
+  }
+
+  int Run() override {
+    const QueryOptions query = query_.Get();
+    const PlaceDatabase db = db_.Open();
+    const std::vector<Frame> frames = source_.Read();
+    GroundTruth truth = GroundTruth::FromPoses(thresholds_);
+    if (!truth_csv_.empty()) {
+      truth = GroundTruth::FromMatchList(ReadMatchTruth(truth_csv_));
+    } else if (source_.tum.empty()) {
+      PLACEDB_THROW_INVALID("eval with --images needs --truth CSV (or use --tum with poses)");
+    }
+    EvalOptions options = options_;
+    options.progress = !quiet_;
+    const EvalReport r = Evaluate(db, frames, truth, options, query);
+    fmt::print("eval of {} ({} keyframes, {} features) on {}\n", db_.dir, db.size(),
+               FeatureTypeName(db.feature_type()), source_.Describe());
+    fmt::print("{}", FormatEvalReport(r));
+    nlohmann::json j = EvalReportToJson(r);
+    j["database"] = db_.dir;
+    j["queries_from"] = source_.Describe();
+    j["seed"] = options.seed;
+    j["settings"] = db.manifest().value("settings", nlohmann::json::object());
+    WriteJson(json_, j);
+    return 0;
+  }
+
+ private:
+  DatabaseArgs db_;
+  QueryArgs query_;
+  SourceArgs source_;
+  std::string truth_csv_, json_;
+  PoseThresholds thresholds_;
+  EvalOptions options_;
+  bool quiet_ = false;
+};
+
+}  // namespace
+
+std::unique_ptr<Command> MakeEvalCommand() { return std::make_unique<EvalCommand>(); }
+
+}  // namespace cli
+}  // namespace placedb

@@ -1,0 +1,76 @@
+// placedb info: describe a database.
+#include <fmt/format.h>
+
+#include <filesystem>
+#include <iostream>
+
+#include "placedb/exe/cli.h"
+#include "placedb/index/place_database.h"
+#include "placedb/util/file_io.h"
+
+namespace placedb {
+namespace cli {
+namespace {
+namespace fs = std::filesystem;
+
+class InfoCommand : public Command {
+ public:
+  CLI::App* Register(CLI::App& app) override {
+    auto* cmd = app.add_subcommand("info", "describe a database");
+    db_.Add(cmd, "");
+    cmd->add_flag("--json", json_, "print the manifest as JSON");
+    return cmd;
+  }
+
+  int Run() override {
+    const PlaceDatabase place = db_.Open();
+    const Database& db = place.database();
+    const nlohmann::json& m = place.manifest();
+    if (json_) {
+      std::cout << m.dump(2) << "\n";
+      return 0;
+    }
+    const BuildOptions& b = place.build_options();
+    fmt::print("database        {}\n", db_.dir);
+    fmt::print("format version  {}\n", m.value("format_version", 0));
+    fmt::print("created         {} by placedb {}\n", m.value("created", "?"),
+               m.value("placedb_version", "?"));
+    fmt::print("source          {}\n", m.value("source", "?"));
+    fmt::print("features        {} ({} bytes per descriptor)\n", FeatureTypeName(db.feature_type()),
+               db.descriptor_bytes());
+    fmt::print("crop            {}\n", CropModeName(b.crop));
+    fmt::print("resize          1/{} of the area\n", b.resize);
+    fmt::print("upscale below   {} px (small frames are upscaled for extraction; 0: never)\n",
+               b.features.upscale_below);
+    size_t cropped = 0, with_pose = 0;
+    for (const Keyframe& k : db.keyframes()) {
+      cropped += k.crop_channel >= 0;
+      with_pose += k.pose.has_value();
+    }
+    fmt::print("keyframes       {} ({} cropped)\n", db.size(), cropped);
+    fmt::print("features        {} ({:.1f} per keyframe)\n", db.num_features(),
+               db.empty() ? 0.0 : static_cast<double>(db.num_features()) / db.size());
+    fmt::print("stored images   {} bytes\n",
+               DirectorySize((fs::path(db_.dir) / "images").string()));
+    fmt::print("feature file    {} bytes\n",
+               FileSize((fs::path(db_.dir) / Database::kKeyframesFile).string()));
+    if (m.contains("bytes") && m["bytes"].is_object()) {
+      const nlohmann::json& full = m["bytes"].value("full_frames_png", nlohmann::json());
+      if (full.is_number_unsigned())
+        fmt::print("whole frames    {} bytes as PNG\n", full.get<uint64_t>());
+    }
+    fmt::print("poses           {} of {} keyframes\n", with_pose, db.size());
+    return 0;
+  }
+
+ private:
+  DatabaseArgs db_;
+  bool json_ = false;
+};
+
+}  // namespace
+
+std::unique_ptr<Command> MakeInfoCommand() { return std::make_unique<InfoCommand>(); }
+
+}  // namespace cli
+}  // namespace placedb

@@ -1,0 +1,81 @@
+// placedb query: where was this image taken?
+#include <fmt/format.h>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "placedb/exe/cli.h"
+#include "placedb/index/place_database.h"
+#include "placedb/util/check.h"
+
+namespace placedb {
+namespace cli {
+namespace {
+
+class QueryCommand : public Command {
+ public:
+  CLI::App* Register(CLI::App& app) override {
+    auto* cmd = app.add_subcommand("query", "find the keyframe that best matches an image");
+    db_.Add(cmd, "threads matching and verifying");
+    cmd->add_option("--image", image_, "query image (a full, uncropped frame)")->required();
+    query_.Add(cmd);
+    cmd->add_option("--json", json_, "write the result as JSON to this file ('-': stdout)");
+    return cmd;
+  }
+
+  int Run() override {
+    const QueryOptions options = query_.Get();
+    const PlaceDatabase db = db_.Open();
+    if (db.empty()) {
+      fmt::print("the database at {} is empty: no keyframes to match against\n", db_.dir);
+      return 2;
+    }
+    const cv::Mat image = cv::imread(image_, cv::IMREAD_COLOR);
+    if (image.empty()) PLACEDB_THROW_INVALID("cannot read query image ", image_);
+    const QueryResult r = db.Query(image, options);
+    if (const RankedKeyframe* best = r.best()) {
+      fmt::print("best keyframe {} ({})  {}\n", best->keyframe_id, Describe(*best), best->source);
+      fmt::print("pose          {}\n", FormatPose(best->pose));
+    } else if (r.ranked.empty()) {
+      fmt::print("no match: no keyframe has {} or more matches ({} query features)\n",
+                 options.min_matches, r.num_query_features);
+    } else {
+      fmt::print("no match (new place?): the best keyframe, {}, scores {:g} < --min-score {:g}\n",
+                 r.ranked[0].keyframe_id, r.ranked[0].score, options.min_score);
+    }
+    if (!r.ranked.empty()) {
+      fmt::print("rank  keyframe  matches  inliers\n");
+      for (size_t i = 0; i < r.ranked.size(); ++i) {
+        const RankedKeyframe& k = r.ranked[i];
+        fmt::print("{:>4}  {:>8}  {:>7}  {:>7}\n", i + 1, k.keyframe_id, k.num_matches,
+                   k.verified() ? std::to_string(k.num_inliers) : "-");
+      }
+    }
+    fmt::print(
+        "time          {:.2f} ms ({:.2f} extract + {:.2f} match + {:.2f} verify), {} query "
+        "features, {} keyframes examined\n",
+        r.times.total_ms, r.times.extract_ms, r.times.match_ms, r.times.verify_ms,
+        r.num_query_features, r.num_examined);
+    nlohmann::json j = r;
+    j["query"] = image_;
+    j["database"] = db_.dir;
+    WriteJson(json_, j);
+    return 0;
+  }
+
+ private:
+  static std::string Describe(const RankedKeyframe& k) {
+    if (k.verified()) return fmt::format("{} inliers of {} matches", k.num_inliers, k.num_matches);
+    return fmt::format("{} matches", k.num_matches);
+  }
+
+  DatabaseArgs db_;
+  QueryArgs query_;
+  std::string image_, json_;
+};
+
+}  // namespace
+
+std::unique_ptr<Command> MakeQueryCommand() { return std::make_unique<QueryCommand>(); }
+
+}  // namespace cli
+}  // namespace placedb

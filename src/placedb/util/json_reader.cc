@@ -1,0 +1,79 @@
+#include "placedb/util/json_reader.h"
+
+#include <cmath>
+#include <stdexcept>
+
+namespace placedb {
+
+JsonReader::JsonReader(const nlohmann::json& j, std::string where, bool runtime_errors)
+    : j_(j), where_(std::move(where)), runtime_errors_(runtime_errors) {
+  if (!j_.is_object()) Fail("", "is not a JSON object");
+}
+
+void JsonReader::Fail(const std::string& field, const std::string& what) const {
+  const std::string message = where_ + (field.empty() ? "" : "." + field) + " " + what;
+  if (runtime_errors_) throw std::runtime_error(message);
+  throw std::invalid_argument(message);
+}
+
+bool JsonReader::Has(const char* key) const { return j_.contains(key); }
+
+const nlohmann::json& JsonReader::Member(const char* key) const {
+  const auto it = j_.find(key);
+  if (it == j_.end()) Fail(key, "is missing");
+  return *it;
+}
+
+JsonReader JsonReader::Child(const char* key) const {
+  const nlohmann::json& v = Member(key);
+  if (!v.is_object()) Fail(key, "is not a JSON object");
+  return JsonReader(v, where_ + "." + key, runtime_errors_);
+}
+
+double JsonReader::Number(const char* key) const {
+  const nlohmann::json& v = Member(key);
+  if (!v.is_number()) Fail(key, "is not a number");
+  const double d = v.get<double>();
+  if (!std::isfinite(d)) Fail(key, "is not finite");
+  return d;
+}
+
+int64_t JsonReader::Integer(const char* key, int64_t lo, int64_t hi) const {
+  const nlohmann::json& v = Member(key);
+  if (!v.is_number_integer()) Fail(key, "is not an integer");
+  if (v.is_number_unsigned() && v.get<uint64_t>() > static_cast<uint64_t>(INT64_MAX))
+    Fail(key, "is out of range");
+  const int64_t i = v.get<int64_t>();
+  if (i < lo || i > hi) {
+    Fail(key, "is out of range [" + std::to_string(lo) + ", " + std::to_string(hi) + "] (got " +
+                  std::to_string(i) + ")");
+  }
+  return i;
+}
+
+bool JsonReader::Boolean(const char* key) const {
+  const nlohmann::json& v = Member(key);
+  if (!v.is_boolean()) Fail(key, "is not true or false");
+  return v.get<bool>();
+}
+
+std::string JsonReader::String(const char* key) const {
+  const nlohmann::json& v = Member(key);
+  if (!v.is_string()) Fail(key, "is not a string");
+  return v.get<std::string>();
+}
+
+void JsonReader::Read(const char* key, double* out) const {
+  if (Has(key)) *out = Number(key);
+}
+void JsonReader::Read(const char* key, int* out) const {
+  if (Has(key)) *out = static_cast<int>(Integer(key, INT32_MIN, INT32_MAX));
+}
+void JsonReader::Read(const char* key, bool* out) const {
+  if (Has(key)) *out = Boolean(key);
+}
+void JsonReader::Read(const char* key, std::string* out) const {
+  if (Has(key)) *out = String(key);
+}
+
+}  // namespace placedb

@@ -1,0 +1,46 @@
+// Strict reading of JSON from outside (manifests, results received over the
+// wire): every field is checked for its type and range, and a bad one throws
+// with the path of the field ("manifest.settings.resize is not an integer"),
+// never nlohmann's own exceptions, never a silent conversion (true is not 1,
+// 2147483648 is not an int, 1.5 is not an integer).
+#pragma once
+
+#include <cstdint>
+#include <nlohmann/json.hpp>
+#include <string>
+
+namespace placedb {
+
+class JsonReader {
+ public:
+  // Errors throw std::runtime_error (a damaged file) when `runtime_errors`,
+  // else std::invalid_argument (bad input from a caller). `where` names `j`.
+  JsonReader(const nlohmann::json& j, std::string where, bool runtime_errors = false);
+
+  const nlohmann::json& json() const { return j_; }
+  const std::string& where() const { return where_; }
+  bool Has(const char* key) const;
+
+  // Required fields.
+  const nlohmann::json& Member(const char* key) const;
+  JsonReader Child(const char* key) const;  // must be an object
+  double Number(const char* key) const;     // finite
+  int64_t Integer(const char* key, int64_t lo, int64_t hi) const;
+  bool Boolean(const char* key) const;
+  std::string String(const char* key) const;
+
+  // Optional fields: `*out` is left as it is when the key is absent.
+  void Read(const char* key, double* out) const;
+  void Read(const char* key, int* out) const;  // any int; ranges are Check()'s
+  void Read(const char* key, bool* out) const;
+  void Read(const char* key, std::string* out) const;
+
+  [[noreturn]] void Fail(const std::string& field, const std::string& what) const;
+
+ private:
+  const nlohmann::json& j_;
+  std::string where_;
+  bool runtime_errors_;
+};
+
+}  // namespace placedb
