@@ -46,13 +46,20 @@ std::vector<ScoredKeyframe> BfMatcherQuery(const Database& db, const FeatureSet&
            (m[0].distance == it->second.distance && m[0].queryIdx < it->second.queryIdx)))
         it->second = m[0];
     }
-    for (const auto& [t, m] : by_train) {
-      if (mo.cross_check) {
-        back.clear();
-        matcher.knnMatch(train.row(t), query.descriptors, back, 2);
-        if (back.empty() || !passes(back[0]) || back[0][0].trainIdx != m.queryIdx) continue;
+    if (mo.cross_check && !by_train.empty()) {
+      // One batched knnMatch back from the matched keyframe rows to the query.
+      cv::Mat rows(static_cast<int>(by_train.size()), train.cols, train.type());
+      int r = 0;
+      for (const auto& entry : by_train) train.row(entry.first).copyTo(rows.row(r++));
+      back.clear();
+      matcher.knnMatch(rows, query.descriptors, back, 2);
+      r = 0;
+      for (const auto& [t, m] : by_train) {
+        const std::vector<cv::DMatch>& b = back[r++];
+        if (passes(b) && b[0].trainIdx == m.queryIdx) good.push_back(m);
       }
-      good.push_back(m);
+    } else {
+      for (const auto& entry : by_train) good.push_back(entry.second);
     }
     const int count = static_cast<int>(good.size());
     if (count >= options.min_matches)

@@ -109,9 +109,11 @@ EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_fra
     progress.Advance();
   }
   progress.Finish();
-  if (report.num_queries > 0) {
-    report.recall_at_1 = static_cast<double>(report.num_correct) / report.num_queries;
-    report.recall_at_5 = static_cast<double>(report.num_correct_at_5) / report.num_queries;
+  // Recall counts the queries that can be answered: a query whose place is
+  // not in the database has no correct keyframe to retrieve.
+  if (report.num_answerable > 0) {
+    report.recall_at_1 = static_cast<double>(report.num_correct) / report.num_answerable;
+    report.recall_at_5 = static_cast<double>(report.num_correct_at_5) / report.num_answerable;
   }
   report.precision_recall =
       ComputePrecisionRecall(answers, report.num_answerable, query_options.min_score);

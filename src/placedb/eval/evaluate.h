@@ -45,6 +45,8 @@ struct EvalReport {
   int num_correct_at_5 = 0;
   int num_answerable = 0;  // queries with a true match in the database
   int num_unreadable = 0;
+  // Of the answerable queries: num_correct / num_answerable (a query whose
+  // place is not in the database has nothing to retrieve).
   double recall_at_1 = 0.0;
   double recall_at_5 = 0.0;
   // Over the decision threshold (QueryOptions::min_score); at_threshold is
