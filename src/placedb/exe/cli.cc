@@ -150,12 +150,56 @@ void DatabaseArgs::Add(CLI::App* cmd, const std::string& threads_what) {
   cmd->add_option("--db", dir, "database directory")->required();
   cmd->add_option("--features", features, "expected feature type (must match the database's)")
       ->check(CLI::IsMember({"orb", "surf"}));
+  auto* part = cmd->add_option("--partition", partition,
+                               "open only partition I of N of the keyframes (I in [0, N), N in "
+                               "[1, 4096]), e.g. 0/3");
+  cmd->add_option("--partition-scheme", scheme, "contiguous ranges or interleaved indices")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"contiguous", "interleaved"}));
+  cmd->add_option("--keyframes", keyframes, "open only these keyframe ids, e.g. 3,4,17")
+      ->excludes(part);
   if (!threads_what.empty()) AddThreadsOption(cmd, open.threads, threads_what);
 }
+
+namespace {
+// A whole number in [lo, hi] from `text`, or std::invalid_argument naming `flag`.
+int64_t ParseInteger(const std::string& text, const std::string& flag, int64_t lo, int64_t hi) {
+  size_t used = 0;
+  int64_t v = 0;
+  try {
+    v = std::stoll(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != text.size() || v < lo || v > hi) {
+    PLACEDB_THROW_INVALID(flag, ": '", text, "' is not a whole number in [", lo, ", ", hi, "]");
+  }
+  return v;
+}
+}  // namespace
 
 PlaceDatabase DatabaseArgs::Open() const {
   OpenOptions o = open;
   if (!features.empty()) o.expected_features = ParseFeatureType(features);
+  if (!partition.empty()) {
+    const size_t slash = partition.find('/');
+    if (slash == std::string::npos) PLACEDB_THROW_INVALID("--partition takes I/N, e.g. 0/3");
+    const int n =
+        static_cast<int>(ParseInteger(partition.substr(slash + 1), "--partition N", 1, 4096));
+    const int i =
+        static_cast<int>(ParseInteger(partition.substr(0, slash), "--partition I", 0, n - 1));
+    o.subset = KeyframeSubset::Partition(i, n, ParsePartitionScheme(scheme));
+  } else if (!keyframes.empty()) {
+    std::vector<int32_t> ids;
+    size_t begin = 0;
+    while (begin <= keyframes.size()) {
+      const size_t comma = std::min(keyframes.find(',', begin), keyframes.size());
+      ids.push_back(static_cast<int32_t>(ParseInteger(keyframes.substr(begin, comma - begin),
+                                                      "--keyframes", INT32_MIN, INT32_MAX)));
+      begin = comma + 1;
+    }
+    o.subset = KeyframeSubset::Ids(std::move(ids));
+  }
   return PlaceDatabase::Open(dir, o);
 }
 

@@ -68,11 +68,15 @@ struct QueryArgs {
   QueryOptions Get() const;
 };
 
-// --db DIR, --features (the type the caller expects) and, when
-// `threads_what` is not empty, --threads: the database a command opens.
+// --db DIR, --features (the type the caller expects), the subset to open
+// (--partition I/N with --partition-scheme, or --keyframes ID,ID,...) and,
+// when `threads_what` is not empty, --threads: the database a command opens.
 struct DatabaseArgs {
   std::string dir;
   std::string features;
+  std::string partition;  // "I/N" or ""
+  std::string scheme = "contiguous";
+  std::string keyframes;  // "ID,ID,..." or ""
   OpenOptions open;
 
   void Add(CLI::App* cmd, const std::string& threads_what);

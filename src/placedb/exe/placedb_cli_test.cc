@@ -246,6 +246,38 @@ TEST_F(CliTest, ArgumentErrorsAreOneLineAndExitOne) {
   EXPECT_EQ(Placedb("--version").code, 0);
 }
 
+// A query may open one partition or a list of keyframes only (a worker's
+// share of the database).
+TEST_F(CliTest, PartitionsAndKeyframeLists) {
+  const std::string db = Path("db");
+  ASSERT_EQ(Placedb("build --images " + kImages + " --last 9 --out " + db + " --quiet").code, 0);
+  const std::string query =
+      "query --db " + db + " --image " + kImages + "/042.jpg --top-k 9 --json -";
+  const CommandResult part = Placedb(query + " --partition 1/3 2>/dev/null");
+  ASSERT_EQ(part.code, 0) << part.output;
+  const auto p = nlohmann::json::parse(part.output.substr(part.output.find("{\n")));
+  EXPECT_EQ(p["num_keyframes"], 3u);  // indices 3..5: ids 4, 5, 6
+  for (const auto& k : p["ranked"]) {
+    EXPECT_GE(k["keyframe_id"].get<int>(), 4);
+    EXPECT_LE(k["keyframe_id"].get<int>(), 6);
+  }
+  const CommandResult inter =
+      Placedb(query + " --partition 0/4 --partition-scheme interleaved 2>/dev/null");
+  ASSERT_EQ(inter.code, 0) << inter.output;
+  EXPECT_EQ(nlohmann::json::parse(inter.output.substr(inter.output.find("{\n")))["num_keyframes"],
+            3u);
+  const CommandResult ids = Placedb(query + " --keyframes 2,7 2>/dev/null");
+  ASSERT_EQ(ids.code, 0) << ids.output;
+  EXPECT_EQ(nlohmann::json::parse(ids.output.substr(ids.output.find("{\n")))["num_keyframes"], 2u);
+  for (const std::string& bad :
+       {"--partition 3/3", "--partition 1", "--partition a/2", "--keyframes 2,x", "--keyframes 99",
+        "--partition 0/2 --keyframes 1"}) {
+    const CommandResult r = Placedb(query + " " + bad);
+    EXPECT_EQ(r.code, 1) << bad << "\n" << r.output;
+    EXPECT_TRUE(Contains(r.output, "placedb: error:")) << bad << "\n" << r.output;
+  }
+}
+
 // A smaller camera, simulated: frames resized as they are read.
 TEST_F(CliTest, FrameSizeSimulatesASmallCamera) {
   const std::string db = Path("small");
