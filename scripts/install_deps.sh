@@ -11,7 +11,7 @@ PACKAGES=(
   libfmt-dev libspdlog-dev
   nlohmann-json3-dev     # manifests, reports
   libeigen3-dev          # poses
-  zlib1g-dev             # CRC-32 of the database files
+  libxxhash-dev          # XXH3 checksums of the database files (header-only use)
   libgtest-dev libgmock-dev
   libbenchmark-dev       # Google Benchmark
   python3                # demo and benchmark tables

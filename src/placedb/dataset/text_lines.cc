@@ -44,6 +44,9 @@ std::vector<TextLine> ReadDataLines(const std::string& path, const std::string& 
   }
   std::string content = ReadFileToString(path);  // std::runtime_error when unreadable
   if (content.compare(0, 3, "\xEF\xBB\xBF") == 0) content.erase(0, 3);
+  if (content.find('\0') != std::string::npos) {
+    PLACEDB_THROW_INVALID(what, " ", path, " is not a text file (it holds NUL bytes)");
+  }
 
   std::vector<TextLine> lines;
   int number = 0;
@@ -70,9 +73,30 @@ std::vector<std::string> SplitFields(const std::string& text, const std::string&
   return fields;
 }
 
+std::string Printable(const std::string& text, size_t max_bytes) {
+  static const char kHex[] = "0123456789abcdef";
+  std::string out;
+  for (size_t i = 0; i < text.size(); ++i) {
+    if (out.size() >= max_bytes) {
+      out += "...";
+      break;
+    }
+    const unsigned char c = static_cast<unsigned char>(text[i]);
+    if (c >= 0x20 && c < 0x7f) {
+      out += static_cast<char>(c);
+    } else {
+      out += "\\x";
+      out += kHex[c >> 4];
+      out += kHex[c & 15];
+    }
+  }
+  return out;
+}
+
 void ThrowLineError(const std::string& path, int line, const std::string& message) {
-  // The data file's location is the useful one here, not this helper's.
-  throw std::invalid_argument(path + ":" + std::to_string(line) + ": " + message);
+  // The data file's location is the useful one here, not this helper's. The
+  // message quotes the file, which may hold anything: only printable bytes.
+  throw std::invalid_argument(path + ":" + std::to_string(line) + ": " + Printable(message, 300));
 }
 
 double ParseDouble(const std::string& token, const std::string& path, int line,

@@ -9,6 +9,10 @@
 namespace placedb {
 namespace internal {
 
+// `text` with every byte outside printable ASCII written as \xNN, cut after
+// `max_bytes` (error messages quote files, which may hold anything).
+std::string Printable(const std::string& text, size_t max_bytes);
+
 // One meaningful line of a text data file.
 struct TextLine {
   int number = 0;    // 1-based line number in the file

@@ -54,6 +54,18 @@ EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_fra
   PLACEDB_CHECK_OPTIONS(eval_options);
   PLACEDB_CHECK_OPTIONS(query_options);
   if (db.empty()) PLACEDB_THROW_INVALID("the database is empty: no keyframes to match against");
+  // Ids beyond every frame and keyframe of the data can never be judged: a
+  // sign of the wrong ground-truth file.
+  int max_id = 0;
+  for (const Frame& f : query_frames) max_id = std::max(max_id, f.id);
+  for (const Keyframe& k : db.database().keyframes()) max_id = std::max(max_id, k.id);
+  const std::vector<int> beyond = truth.IdsAbove(max_id);
+  if (!beyond.empty()) {
+    spdlog::warn(
+        "the ground truth names {} ids beyond the data (the largest query or keyframe id is {}), "
+        "e.g. {}: is it the right file?",
+        beyond.size(), max_id, beyond.front());
+  }
   const std::vector<Frame> queries = SelectQueries(query_frames, truth, eval_options);
   if (queries.empty()) {
     PLACEDB_THROW_INVALID("no query frame has ground truth (", truth.Describe(),
@@ -122,7 +134,7 @@ EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_fra
   report.match_ms = ComputeLatencyStats(match);
   report.verify_ms = ComputeLatencyStats(verify);
   report.image_bytes = DirectorySize((fs::path(db.directory()) / "images").string());
-  report.feature_bytes = FileSize((fs::path(db.directory()) / Database::kKeyframesFile).string());
+  report.feature_bytes = db.database().keyframes_bytes();
   const nlohmann::json& info = db.manifest();
   if (info.contains("bytes") && info["bytes"].is_object() &&
       info["bytes"].value("full_frames_png", nlohmann::json()).is_number_unsigned()) {

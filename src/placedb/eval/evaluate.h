@@ -59,7 +59,7 @@ struct EvalReport {
   LatencyStats match_ms;
   LatencyStats verify_ms;
   uint64_t image_bytes = 0;        // stored PNGs
-  uint64_t feature_bytes = 0;      // keyframes.bin
+  uint64_t feature_bytes = 0;      // the keyframe file
   uint64_t full_png_bytes = 0;     // every database frame stored whole as PNG
   double reduction_vs_full = 0.0;  // 1 - image_bytes / full_png_bytes
   std::string truth;               // how correctness was decided

@@ -51,6 +51,20 @@ bool GroundTruth::AnyCorrectIn(const Frame& query, const Database& db) const {
   return false;
 }
 
+std::vector<int> GroundTruth::IdsAbove(int max_id) const {
+  std::vector<int> out;
+  if (!list_) return out;
+  for (const auto& [query, ids] : *list_) {
+    if (query > max_id) out.push_back(query);
+    for (const int id : ids) {
+      if (id > max_id) out.push_back(id);
+    }
+  }
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+  return out;
+}
+
 std::string GroundTruth::Describe() const {
   if (list_) return "match list";
   return fmt::format("poses ({} m, {} deg)", thresholds_.max_distance_m, thresholds_.max_angle_deg);

@@ -4,6 +4,7 @@
 
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "placedb/dataset/frame.h"
 #include "placedb/dataset/match_truth.h"
@@ -36,6 +37,10 @@ class GroundTruth {
   bool IsCorrect(const Frame& query, const Keyframe& keyframe) const;
   // Whether the database holds at least one correct answer for `query`.
   bool AnyCorrectIn(const Frame& query, const Database& db) const;
+
+  // Match list: the query and keyframe ids it names above `max_id` (sorted,
+  // unique), ids no frame of the data can have. Poses: none.
+  std::vector<int> IdsAbove(int max_id) const;
 
   // "match list" or "poses (0.5 m, 30 deg)".
   std::string Describe() const;

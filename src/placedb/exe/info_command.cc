@@ -52,8 +52,7 @@ class InfoCommand : public Command {
                db.empty() ? 0.0 : static_cast<double>(db.num_features()) / db.size());
     fmt::print("stored images   {} bytes\n",
                DirectorySize((fs::path(db_.dir) / "images").string()));
-    fmt::print("feature file    {} bytes\n",
-               FileSize((fs::path(db_.dir) / Database::kKeyframesFile).string()));
+    fmt::print("keyframe file   {} bytes ({})\n", db.keyframes_bytes(), db.keyframes_file());
     if (m.contains("bytes") && m["bytes"].is_object()) {
       const nlohmann::json& full = m["bytes"].value("full_frames_png", nlohmann::json());
       if (full.is_number_unsigned())

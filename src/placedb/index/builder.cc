@@ -1,11 +1,15 @@
 #include "placedb/index/builder.h"
 
 #include <fcntl.h>
+#include <signal.h>
 #include <spdlog/spdlog.h>
 #include <stdio.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
+#include <cctype>
+#include <cerrno>
 #include <chrono>
 #include <ctime>
 #include <filesystem>
@@ -198,7 +202,45 @@ std::string NowIso8601() {
 }
 
 bool LooksLikeDatabase(const fs::path& dir) {
-  return fs::exists(dir / Database::kManifestFile) || fs::exists(dir / Database::kKeyframesFile);
+  std::error_code ec;
+  if (fs::exists(dir / Database::kManifestFile, ec)) return true;
+  for (const auto& entry : fs::directory_iterator(dir, ec)) {
+    if (Database::IsKeyframesFileName(entry.path().filename().string())) return true;
+  }
+  return false;
+}
+
+// The output directory as one absolute path with a file name: "db/", "db/."
+// and "x/../db" all mean db.
+fs::path NormalizeOutputPath(const std::string& out_dir) {
+  fs::path p = fs::absolute(out_dir).lexically_normal();
+  while (!p.has_filename() && p.has_parent_path() && p != p.root_path()) p = p.parent_path();
+  if (p.filename() == "." || p.filename() == "..") p = fs::weakly_canonical(p);
+  if (p == p.root_path() || p.filename().empty()) {
+    PLACEDB_THROW_INVALID("cannot build a database at ", out_dir, " (", p.string(), ")");
+  }
+  return p;
+}
+
+// Removes "<out>.building.<pid>" folders that builds killed before they
+// finished left behind: those whose process is gone.
+void RemoveAbandonedBuilds(const fs::path& out) {
+  std::error_code ec;
+  const std::string prefix = out.filename().string() + ".building.";
+  for (const auto& entry : fs::directory_iterator(out.parent_path(), ec)) {
+    const std::string name = entry.path().filename().string();
+    if (name.compare(0, prefix.size(), prefix) != 0 || !entry.is_directory(ec)) continue;
+    const std::string pid_text = name.substr(prefix.size());
+    if (pid_text.empty() || pid_text.size() > 9 ||
+        !std::all_of(pid_text.begin(), pid_text.end(), ::isdigit)) {
+      continue;
+    }
+    const pid_t pid = static_cast<pid_t>(std::stol(pid_text));
+    if (pid == ::getpid() || (::kill(pid, 0) != 0 && errno == ESRCH)) {
+      spdlog::info("removing {}, left by a build that did not finish", entry.path().string());
+      fs::remove_all(entry.path(), ec);
+    }
+  }
 }
 
 // Moves the finished temporary directory to `out`. With an existing
@@ -232,7 +274,7 @@ BuildReport BuildDatabase(const std::vector<Frame>& frames, const BuildOptions& 
   PLACEDB_CHECK_OPTIONS(options);
   PLACEDB_CHECK(!out_dir.empty(), "an output directory is needed");
   Timer timer;
-  const fs::path out = fs::absolute(out_dir).lexically_normal();
+  const fs::path out = NormalizeOutputPath(out_dir);
   std::error_code ec;
   if (fs::exists(out, ec)) {
     if (!fs::is_directory(out, ec)) {
@@ -250,6 +292,7 @@ BuildReport BuildDatabase(const std::vector<Frame>& frames, const BuildOptions& 
   }
   if (frames.empty()) PLACEDB_THROW_INVALID("no frames to build a database from");
   fs::create_directories(out.parent_path());
+  RemoveAbandonedBuilds(out);
   const fs::path tmp = out.string() + ".building." + std::to_string(::getpid());
   fs::remove_all(tmp);
   fs::create_directories(tmp / "images");
@@ -327,8 +370,7 @@ BuildReport BuildDatabase(const std::vector<Frame>& frames, const BuildOptions& 
     info["counts"]["cropped"] = report.num_cropped;
     info["bytes"]["images"] = report.image_bytes;
     info["bytes"]["full_frames_png"] = report.full_png_bytes;
-    db.Save(tmp.string());
-    report.feature_bytes = FileSize((tmp / Database::kKeyframesFile).string());
+    report.feature_bytes = db.Save(tmp.string()).keyframes_bytes;
     CommitDirectory(tmp, out);
     report.seconds = timer.ElapsedSeconds();
     return report;

@@ -57,7 +57,7 @@ struct BuildReport {
   size_t num_cropped = 0;            // keyframes kept as a crop (not whole)
   size_t num_features = 0;
   uint64_t image_bytes = 0;     // stored PNGs
-  uint64_t feature_bytes = 0;   // keyframes.bin
+  uint64_t feature_bytes = 0;   // the keyframe file
   uint64_t full_png_bytes = 0;  // every readable frame stored whole as PNG
   double seconds = 0.0;
 };

@@ -41,6 +41,12 @@ void WriteBytes(const std::string& path, const std::string& bytes) {
   out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
 }
 
+// The bytes of the keyframe file the database at `dir` names.
+std::string KeyframeFile(const std::string& dir) {
+  const nlohmann::json m = nlohmann::json::parse(ReadFileToString(dir + "/manifest.json"));
+  return ReadFileToString(dir + "/" + m["files"]["keyframes"].get<std::string>());
+}
+
 // Names of entries in `dir` containing ".building.".
 std::vector<std::string> BuildingLeftovers(const std::string& dir) {
   std::vector<std::string> found;
@@ -68,9 +74,8 @@ TEST(BuilderTest, CropModesAndResizeFactors) {
       EXPECT_EQ(report.num_keyframes, 10u);
       EXPECT_EQ(report.num_skipped, 0u);
       EXPECT_GT(report.num_features, 10u * (resize == 16 ? 5 : 50));
-      EXPECT_EQ(report.feature_bytes, FileSize(out + "/keyframes.bin"));
-
       const Database db = Database::Load(out);
+      EXPECT_EQ(report.feature_bytes, FileSize(out + "/" + db.keyframes_file()));
       ASSERT_EQ(db.size(), 10u);
       EXPECT_EQ(db.num_features(), report.num_features);
       const double side = 1.0 / std::sqrt(static_cast<double>(resize));
@@ -303,12 +308,12 @@ TEST(BuilderTest, ExistingDatabaseNeedsOverwrite) {
   const std::string out = tmp.Path("db");
   BuildOptions options = SmallBuild();
   EXPECT_EQ(BuildDatabase(ListImageFolder(kImages, 1, 5), options, out, "five").num_keyframes, 5u);
-  const std::string bin5 = ReadFileToString(out + "/keyframes.bin");
+  const std::string bin5 = KeyframeFile(out);
 
   EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
       [&] { BuildDatabase(ListImageFolder(kImages, 1, 8), options, out, "eight"); },
       "a database already exists"));
-  EXPECT_EQ(ReadFileToString(out + "/keyframes.bin"), bin5);
+  EXPECT_EQ(KeyframeFile(out), bin5);
 
   options.overwrite = true;
   EXPECT_EQ(BuildDatabase(ListImageFolder(kImages, 1, 8), options, out, "eight").num_keyframes, 8u);
@@ -316,7 +321,7 @@ TEST(BuilderTest, ExistingDatabaseNeedsOverwrite) {
   EXPECT_EQ(db.size(), 8u);
   EXPECT_EQ(db.info()["source"], "eight");
   EXPECT_TRUE(fs::exists(out + "/images/000008.png"));
-  const std::string bin8 = ReadFileToString(out + "/keyframes.bin");
+  const std::string bin8 = KeyframeFile(out);
   const std::string manifest8 = ReadFileToString(out + "/manifest.json");
 
   // A failed overwrite (every image unreadable) leaves the old database as it was.
@@ -334,7 +339,7 @@ TEST(BuilderTest, ExistingDatabaseNeedsOverwrite) {
                                              "none of the 2 images could be read"));
   db = Database::Load(out);
   EXPECT_EQ(db.size(), 8u);
-  EXPECT_EQ(ReadFileToString(out + "/keyframes.bin"), bin8);
+  EXPECT_EQ(KeyframeFile(out), bin8);
   EXPECT_EQ(ReadFileToString(out + "/manifest.json"), manifest8);
   EXPECT_TRUE(fs::exists(out + "/images/000008.png"));
   EXPECT_TRUE(BuildingLeftovers(tmp.Path()).empty());
@@ -371,6 +376,19 @@ TEST(BuilderTest, RefusesNonDatabaseOutputs) {
   EXPECT_EQ(BuildDatabase(frames, SmallBuild(), empty, "x").num_keyframes, 2u);
   EXPECT_EQ(Database::Load(empty).size(), 2u);
   EXPECT_TRUE(BuildingLeftovers(tmp.Path()).empty());
+
+  // "db/", "db/." and "x/../db" name the directory db itself (they used to
+  // fail after the whole build, leaving an empty folder).
+  for (const std::string& spelled :
+       {tmp.Path("slash") + "/", tmp.Path("dot") + "/.", tmp.Path("x") + "/../up"}) {
+    EXPECT_EQ(BuildDatabase(frames, SmallBuild(), spelled, "x").num_keyframes, 2u) << spelled;
+  }
+  EXPECT_EQ(Database::Load(tmp.Path("slash")).size(), 2u);
+  EXPECT_EQ(Database::Load(tmp.Path("dot")).size(), 2u);
+  EXPECT_EQ(Database::Load(tmp.Path("up")).size(), 2u);
+  EXPECT_TRUE(BuildingLeftovers(tmp.Path()).empty());
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+      [&] { BuildDatabase(frames, SmallBuild(), "/", "x"); }, "cannot build a database at /"));
 }
 
 TEST(BuilderTest, TinyImagesGiveKeyframesWithoutFeatures) {
@@ -408,11 +426,12 @@ TEST(BuilderTest, TinyImagesGiveKeyframesWithoutFeatures) {
 // Runs a 40-image overwrite build in a forked child and kills it (SIGKILL)
 // mid-way: the database already at the path must still load, unchanged.
 TEST(BuilderTest, KilledBuildLeavesPreviousDatabase) {
+  if (testing_util::kThreadSanitizer) GTEST_SKIP() << "forks: not under ThreadSanitizer";
   TempDir tmp;
   const std::string out = tmp.Path("db");
   ASSERT_EQ(BuildDatabase(ListImageFolder(kImages, 1, 10), SmallBuild(), out, "old").num_keyframes,
             10u);
-  const std::string old_bin = ReadFileToString(out + "/keyframes.bin");
+  const std::string old_bin = KeyframeFile(out);
   const std::vector<Frame> frames40 = ListImageFolder(kImages, 1, 40);
   ASSERT_EQ(frames40.size(), 40u);
   BuildOptions child_options = SmallBuild();
@@ -462,7 +481,16 @@ TEST(BuilderTest, KilledBuildLeavesPreviousDatabase) {
     const Database db = Database::Load(out);
     EXPECT_EQ(db.size(), 10u);
     EXPECT_EQ(db.info()["source"], "old");
-    EXPECT_EQ(ReadFileToString(out + "/keyframes.bin"), old_bin);
+    EXPECT_EQ(KeyframeFile(out), old_bin);
+    // What the killed build left behind goes with the next build of the
+    // same database (its process is gone).
+    if (delay_ms == 120) {
+      EXPECT_FALSE(BuildingLeftovers(tmp.Path()).empty());
+      BuildOptions again = SmallBuild();
+      again.overwrite = true;
+      BuildDatabase(ListImageFolder(kImages, 1, 10), again, out, "old");
+      EXPECT_TRUE(BuildingLeftovers(tmp.Path()).empty());
+    }
     for (const std::string& left : BuildingLeftovers(tmp.Path())) fs::remove_all(tmp.Path(left));
   }
 

@@ -1,41 +1,107 @@
 #include "placedb/index/database.h"
 
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
 #include <cstring>
 #include <filesystem>
-#include <optional>
-#include <string_view>
+#include <numeric>
+#include <type_traits>
 #include <unordered_set>
 
+#include "placedb/index/keyframe_file.h"
 #include "placedb/util/check.h"
+#include "placedb/util/checksum.h"
 #include "placedb/util/file_io.h"
+#include "placedb/util/json_reader.h"
 
-// keyframes.bin, format version 1. All values little-endian.
-//   char[8]  magic "PLDBKF\r\n" (the CR LF catches text-mode mangling)
-//   u32      format version
-//   u32      feature type (1 ORB, 2 SURF)
-//   u32      descriptor bytes per row
-//   u32      reserved (0)
-//   u64      number of keyframes K
-//   u64      number of features F
-//   u64      bytes of the string table S
-//   K x keyframe record (fixed 152 bytes, see EncodeKeyframes)
-//   F x keypoint record (x, y, size, angle, response: f32; octave, class_id: i32)
-//   padding to a multiple of 32 bytes
-//   F x descriptor row (descriptor bytes each): a flat array, mappable as is
-//   S bytes of string table (keyframe sources and stored image names)
-//   u32      CRC-32 of every byte before it
 namespace placedb {
 namespace fs = std::filesystem;
+namespace kf = keyframe_file;
+
+// Keypoints are used in place from the file: its records are cv::KeyPoint.
+static_assert(std::is_standard_layout<cv::KeyPoint>::value, "cv::KeyPoint layout");
+static_assert(sizeof(cv::KeyPoint) == kf::kKeypointRecordBytes, "cv::KeyPoint is 28 bytes");
+static_assert(offsetof(cv::KeyPoint, pt) == 0 && offsetof(cv::KeyPoint, size) == 8 &&
+                  offsetof(cv::KeyPoint, angle) == 12 && offsetof(cv::KeyPoint, response) == 16 &&
+                  offsetof(cv::KeyPoint, octave) == 20 && offsetof(cv::KeyPoint, class_id) == 24,
+              "cv::KeyPoint field order");
+
 namespace {
 
-constexpr char kMagic[8] = {'P', 'L', 'D', 'B', 'K', 'F', '\r', '\n'};
-constexpr size_t kDescriptorAlignment = 32;
+constexpr size_t kMaxPathBytes = 65536;
+constexpr size_t kMaxManifestBytes = 64 << 20;
+
+// Little-endian field access in a byte image (the host is checked to be
+// little-endian before any file is read or written).
+template <typename T>
+T Field(const char* base, size_t offset) {
+  T value;
+  std::memcpy(&value, base + offset, sizeof(T));
+  return value;
+}
+template <typename T>
+void SetField(char* base, size_t offset, T value) {
+  std::memcpy(base + offset, &value, sizeof(T));
+}
+
+size_t AlignUp(size_t n, size_t alignment) { return (n + alignment - 1) / alignment * alignment; }
+
+bool Finite(double v) { return std::isfinite(v); }
+
+// Offsets inside a 152-byte keyframe record.
+namespace rec {
+constexpr size_t kId = 0, kCropChannel = 4, kCropX = 8, kCropY = 12, kCropW = 16, kCropH = 20,
+                 kOrigW = 24, kOrigH = 28, kStoredW = 32, kStoredH = 36, kTimestamp = 40,
+                 kScale = 48, kHasPose = 56, kPositive = 60, kTx = 64, kQx = 88,
+                 kFeatureOffset = 120, kFeatureCount = 128, kSourceLen = 132, kStringOffset = 136,
+                 kImageLen = 144, kReserved = 148;
+}  // namespace rec
+
+// The header checksum: header bytes [0, 56) then the section table.
+uint64_t HeaderChecksum(const char* bytes, uint32_t num_sections) {
+  Checksum64Stream s;
+  s.Update(bytes, kf::kChecksumOffset);
+  s.Update(bytes + kf::kHeaderBytes, static_cast<size_t>(num_sections) * kf::kSectionEntryBytes);
+  return s.Digest();
+}
 
 }  // namespace
 
+std::string CheckKeyframe(const Keyframe& k) {
+  if (k.id < 1) return "id " + std::to_string(k.id) + " is not >= 1";
+  if (k.crop_channel < -1 || k.crop_channel > 2)
+    return "crop channel " + std::to_string(k.crop_channel) + " is not in [-1, 2]";
+  if (k.original_size.width < 0 || k.original_size.height < 0 || k.stored_size.width < 0 ||
+      k.stored_size.height < 0) {
+    return "an image size is negative";
+  }
+  if (k.crop.x < 0 || k.crop.y < 0 || k.crop.width < 0 || k.crop.height < 0)
+    return "the crop rectangle is negative";
+  if (k.original_size.area() > 0 && (int64_t{k.crop.x} + k.crop.width > k.original_size.width ||
+                                     int64_t{k.crop.y} + k.crop.height > k.original_size.height)) {
+    return "the crop rectangle leaves the original image";
+  }
+  if (!(k.scale > 0.0 && k.scale <= 64.0)) return "scale is not in (0, 64]";
+  if (!Finite(k.timestamp)) return "timestamp is not finite";
+  if (k.pose) {
+    const Pose& p = *k.pose;
+    if (!p.translation.allFinite() || !p.rotation.coeffs().allFinite())
+      return "the pose is not finite";
+    if (std::abs(p.rotation.norm() - 1.0) > 1e-3)
+      return "the pose's quaternion is not of unit length";
+  }
+  if (k.source.size() > kMaxPathBytes || k.image_file.size() > kMaxPathBytes)
+    return "a path is longer than 64 KiB";
+  return "";
+}
+
 Database::Database(FeatureType type, int descriptor_bytes)
     : feature_type_(type), descriptor_bytes_(descriptor_bytes) {
-  PLACEDB_CHECK(descriptor_bytes > 0, "descriptor width must be positive");
+  const bool ok = type == FeatureType::kOrb ? descriptor_bytes == 32
+                                            : (descriptor_bytes == 256 || descriptor_bytes == 512);
+  PLACEDB_CHECK(ok, FeatureTypeName(type), " descriptors cannot be ", descriptor_bytes,
+                " bytes wide");
 }
 
 int Database::IndexOfId(int32_t id) const {
@@ -43,372 +109,562 @@ int Database::IndexOfId(int32_t id) const {
   return it == index_of_id_.end() ? -1 : it->second;
 }
 
-std::vector<cv::KeyPoint> Database::Keypoints(size_t index) const {
-  const auto begin = keypoints_.begin() + static_cast<ptrdiff_t>(local_offset_[index]);
-  return std::vector<cv::KeyPoint>(begin, begin + feature_count_[index]);
+Span<cv::KeyPoint> Database::Keypoints(size_t index) const {
+  PLACEDB_CHECK(has_features_, "the database was opened as a keyframe table, without features");
+  return Span<cv::KeyPoint>(KeypointData() + row_offset_[index], feature_count_[index]);
 }
 
 DescriptorBlock Database::Descriptors(size_t index) const {
+  PLACEDB_CHECK(has_features_, "the database was opened as a keyframe table, without features");
   DescriptorBlock block;
   block.type = feature_type_;
   block.rows = static_cast<int>(feature_count_[index]);
   block.row_bytes = descriptor_bytes_;
   block.data = DescriptorData() + row_offset_[index] * descriptor_bytes_;
-  if (feature_type_ == FeatureType::kSurf) {
-    block.laplacian = laplacian_.data() + local_offset_[index];
-  }
+  if (feature_type_ == FeatureType::kSurf)
+    block.positive_rows = static_cast<int>(positive_count_[index]);
   return block;
 }
 
+void Database::CopyOnWrite() {
+  if (!mapping_) return;
+  std::vector<cv::KeyPoint> keypoints;
+  std::vector<uint8_t> descriptors;
+  keypoints.reserve(num_features_);
+  descriptors.reserve(num_features_ * descriptor_bytes_);
+  std::vector<uint64_t> offsets;
+  for (size_t i = 0; i < keyframes_.size(); ++i) {
+    offsets.push_back(keypoints.size());
+    const Span<cv::KeyPoint> kp = Keypoints(i);
+    keypoints.insert(keypoints.end(), kp.begin(), kp.end());
+    const DescriptorBlock block = Descriptors(i);
+    descriptors.insert(descriptors.end(), block.data,
+                       block.data + static_cast<size_t>(block.rows) * block.row_bytes);
+  }
+  keypoints_ = std::move(keypoints);
+  descriptors_ = std::move(descriptors);
+  row_offset_ = std::move(offsets);
+  mapping_.reset();
+  mapped_keypoints_ = nullptr;
+  mapped_descriptors_ = nullptr;
+}
+
 void Database::AddKeyframe(Keyframe keyframe, const FeatureSet& features) {
+  PLACEDB_CHECK(has_features_, "a keyframe table (opened without features) cannot grow");
+  const std::string reason = CheckKeyframe(keyframe);
+  if (!reason.empty()) PLACEDB_THROW_INVALID("keyframe ", keyframe.id, ": ", reason);
   if (features.type != feature_type_) {
     PLACEDB_THROW_INVALID("cannot add ", FeatureTypeName(features.type),
                           " features to a database of ", FeatureTypeName(feature_type_),
                           " features");
   }
-  const int row_bytes =
-      static_cast<int>(features.descriptors.cols * features.descriptors.elemSize());
-  PLACEDB_CHECK(features.empty() || row_bytes == descriptor_bytes_, "descriptor width ", row_bytes,
-                " differs from the database's ", descriptor_bytes_);
-  PLACEDB_CHECK(features.descriptors.rows == static_cast<int>(features.keypoints.size()),
-                "one descriptor per keypoint expected");
+  const int rows = features.descriptors.rows;
+  PLACEDB_CHECK(rows == static_cast<int>(features.keypoints.size()),
+                "one descriptor per keypoint expected (", features.keypoints.size(), " keypoints, ",
+                rows, " rows)");
+  if (rows > 0) {
+    const int row_bytes =
+        static_cast<int>(features.descriptors.cols * features.descriptors.elemSize());
+    PLACEDB_CHECK(row_bytes == descriptor_bytes_, "descriptor width ", row_bytes,
+                  " differs from the database's ", descriptor_bytes_);
+    PLACEDB_CHECK(
+        features.descriptors.channels() == 1 &&
+            features.descriptors.depth() == (feature_type_ == FeatureType::kOrb ? CV_8U : CV_32F),
+        "descriptors of the wrong element type");
+  }
+  for (const cv::KeyPoint& kp : features.keypoints) {
+    PLACEDB_CHECK(std::isfinite(kp.pt.x) && std::isfinite(kp.pt.y) && std::isfinite(kp.size) &&
+                      std::isfinite(kp.angle) && std::isfinite(kp.response),
+                  "keyframe ", keyframe.id, " has a keypoint that is not finite");
+  }
   PLACEDB_CHECK(IndexOfId(keyframe.id) < 0, "duplicate keyframe id ", keyframe.id);
-  if (mapping_) {
-    // Copy on write: the mapped file is read-only. Only this database's
-    // keyframes are copied, back to back, so rows and keypoints align again.
-    std::vector<uint8_t> owned;
-    owned.reserve(keypoints_.size() * descriptor_bytes_);
-    for (size_t i = 0; i < keyframes_.size(); ++i) {
-      const DescriptorBlock block = Descriptors(i);
-      owned.insert(owned.end(), block.data,
-                   block.data + static_cast<size_t>(block.rows) * block.row_bytes);
-    }
-    descriptors_ = std::move(owned);
-    row_offset_ = local_offset_;
-    mapping_.reset();
-    mapped_descriptors_ = nullptr;
+  CopyOnWrite();
+  // SURF: positive Laplacian first, so the L2 kernel scans one sign's rows
+  // without testing each; stable, so the order is otherwise kept.
+  std::vector<int> order(rows);
+  std::iota(order.begin(), order.end(), 0);
+  uint32_t positive = 0;
+  if (feature_type_ == FeatureType::kSurf) {
+    const auto mid = std::stable_partition(
+        order.begin(), order.end(), [&](int r) { return features.keypoints[r].class_id >= 0; });
+    positive = static_cast<uint32_t>(mid - order.begin());
   }
   row_offset_.push_back(keypoints_.size());
-  local_offset_.push_back(keypoints_.size());
-  feature_count_.push_back(static_cast<uint32_t>(features.keypoints.size()));
-  keypoints_.insert(keypoints_.end(), features.keypoints.begin(), features.keypoints.end());
-  for (int r = 0; r < features.descriptors.rows; ++r) {
+  feature_count_.push_back(static_cast<uint32_t>(rows));
+  positive_count_.push_back(positive);
+  for (const int r : order) {
+    keypoints_.push_back(features.keypoints[r]);
     const uint8_t* row = features.descriptors.ptr<uint8_t>(r);
     descriptors_.insert(descriptors_.end(), row, row + descriptor_bytes_);
   }
-  for (const cv::KeyPoint& kp : features.keypoints) {
-    laplacian_.push_back(kp.class_id < 0 ? -1 : 1);
-  }
+  num_features_ += static_cast<size_t>(rows);
   index_of_id_.emplace(keyframe.id, static_cast<int>(keyframes_.size()));
   keyframes_.push_back(std::move(keyframe));
   keyframes_in_file_ = keyframes_.size();
 }
 
-std::string Database::EncodeKeyframes() const {
-  BinaryWriter w;
-  w.PutBytes(kMagic, sizeof(kMagic));
-  w.Put<uint32_t>(kDatabaseFormatVersion);
-  w.Put<uint32_t>(static_cast<uint32_t>(feature_type_));
-  w.Put<uint32_t>(static_cast<uint32_t>(descriptor_bytes_));
-  w.Put<uint32_t>(0);
-  w.Put<uint64_t>(keyframes_.size());
-  w.Put<uint64_t>(keypoints_.size());
-  std::string strings;
-  for (const Keyframe& k : keyframes_) strings += k.source + k.image_file;
-  w.Put<uint64_t>(strings.size());
+// ---- writing ------------------------------------------------------------------
 
-  uint64_t string_offset = 0;
-  for (size_t i = 0; i < keyframes_.size(); ++i) {
-    const Keyframe& k = keyframes_[i];
-    w.Put<int32_t>(k.id);
-    w.Put<int32_t>(k.crop_channel);
-    w.Put<int32_t>(k.crop.x);
-    w.Put<int32_t>(k.crop.y);
-    w.Put<int32_t>(k.crop.width);
-    w.Put<int32_t>(k.crop.height);
-    w.Put<int32_t>(k.original_size.width);
-    w.Put<int32_t>(k.original_size.height);
-    w.Put<int32_t>(k.stored_size.width);
-    w.Put<int32_t>(k.stored_size.height);
-    w.Put<double>(k.timestamp);
-    w.Put<double>(k.scale);
-    w.Put<uint32_t>(k.pose ? 1u : 0u);
-    w.Put<uint32_t>(0u);
-    const Pose pose = k.pose.value_or(Pose());
-    w.Put<double>(pose.translation.x());
-    w.Put<double>(pose.translation.y());
-    w.Put<double>(pose.translation.z());
-    w.Put<double>(pose.rotation.x());
-    w.Put<double>(pose.rotation.y());
-    w.Put<double>(pose.rotation.z());
-    w.Put<double>(pose.rotation.w());
-    w.Put<uint64_t>(local_offset_[i]);  // rows are written back to back below
-    w.Put<uint32_t>(feature_count_[i]);
-    w.Put<uint32_t>(static_cast<uint32_t>(k.source.size()));
-    w.Put<uint64_t>(string_offset);
-    w.Put<uint32_t>(static_cast<uint32_t>(k.image_file.size()));
-    w.Put<uint32_t>(0u);
-    string_offset += k.source.size() + k.image_file.size();
-  }
-  for (const cv::KeyPoint& kp : keypoints_) {
-    w.Put<float>(kp.pt.x);
-    w.Put<float>(kp.pt.y);
-    w.Put<float>(kp.size);
-    w.Put<float>(kp.angle);
-    w.Put<float>(kp.response);
-    w.Put<int32_t>(kp.octave);
-    w.Put<int32_t>(kp.class_id);
-  }
-  w.Align(kDescriptorAlignment);
-  for (size_t i = 0; i < keyframes_.size(); ++i) {
-    const DescriptorBlock block = Descriptors(i);
-    w.PutArray(block.data, static_cast<size_t>(block.rows) * block.row_bytes);
-  }
-  w.PutBytes(strings.data(), strings.size());
-  const uint32_t crc = Crc32(w.buffer().data(), w.size());
-  w.Put<uint32_t>(crc);
-  return w.buffer();
+std::string Database::KeyframesFileName(uint64_t checksum) {
+  return "keyframes." + ChecksumHex(checksum) + ".bin";
 }
 
-void Database::DecodeKeyframes(std::shared_ptr<const MappedFile> file, const std::string& path,
-                               const KeyframeSubset& subset) {
-  const std::string_view bytes(file->data(), file->size());
+bool Database::IsKeyframesFileName(const std::string& name) {
+  if (name == "keyframes.bin") return true;
+  if (name.size() != 10 + 16 + 4 || name.compare(0, 10, "keyframes.") != 0 ||
+      name.compare(26, 4, ".bin") != 0) {
+    return false;
+  }
+  return std::all_of(name.begin() + 10, name.begin() + 26,
+                     [](char c) { return (c >= '0' && c <= '9') || (c >= 'a' && c <= 'f'); });
+}
+
+Database::SaveResult Database::Save(const std::string& dir) const {
+  PLACEDB_CHECK(has_features_, "a keyframe table (opened without features) cannot be saved");
   if (!HostIsLittleEndian()) PLACEDB_THROW_RUNTIME("placedb databases need a little-endian host");
-  // A file cut inside the magic (a prefix of it, or empty) is truncated, not
-  // a different kind of file.
-  if (bytes.size() < sizeof(kMagic) &&
-      (bytes.empty() || std::memcmp(bytes.data(), kMagic, bytes.size()) == 0)) {
-    PLACEDB_THROW_RUNTIME(path, ": file is truncated (", bytes.size(), " bytes)");
-  }
-  if (bytes.size() < sizeof(kMagic) || std::memcmp(bytes.data(), kMagic, sizeof(kMagic)) != 0) {
-    PLACEDB_THROW_RUNTIME(path, ": not a placedb keyframe file (wrong magic)");
-  }
-  BinaryReader header(bytes.data(), bytes.size(), path);
-  char magic[8];
-  header.GetBytes(magic, sizeof(magic));
-  const uint32_t version = header.Get<uint32_t>();
-  if (version != kDatabaseFormatVersion) {
-    PLACEDB_THROW_RUNTIME(path, ": format version ", version,
-                          " is not supported (this placedb reads version ", kDatabaseFormatVersion,
-                          ")");
-  }
-  if (bytes.size() < sizeof(kMagic) + 4 + 4) {
-    PLACEDB_THROW_RUNTIME(path, ": file is truncated");
-  }
-  // The checksum covers everything but itself: verify before trusting counts.
-  // A truncated file fails here too, with its own message.
-  const uint32_t type = header.Get<uint32_t>();
-  const uint32_t row_bytes = header.Get<uint32_t>();
-  header.Get<uint32_t>();
-  const uint64_t num_keyframes = header.Get<uint64_t>();
-  const uint64_t num_features = header.Get<uint64_t>();
-  const uint64_t string_bytes = header.Get<uint64_t>();
-  constexpr uint64_t kKeyframeRecord = 152;
-  constexpr uint64_t kKeypointRecord = 28;
-  uint64_t expected =
-      header.position() + num_keyframes * kKeyframeRecord + num_features * kKeypointRecord;
-  expected = (expected + kDescriptorAlignment - 1) / kDescriptorAlignment * kDescriptorAlignment;
-  expected += num_features * row_bytes + string_bytes + 4;
-  if (num_keyframes > bytes.size() || num_features > bytes.size() || string_bytes > bytes.size() ||
-      row_bytes > 4096 || bytes.size() < expected) {
-    PLACEDB_THROW_RUNTIME(path, ": file is truncated (", bytes.size(), " bytes, header says ",
-                          expected, ")");
-  }
-  if (bytes.size() != expected) {
-    PLACEDB_THROW_RUNTIME(path, ": file has ", bytes.size() - expected,
-                          " unexpected trailing bytes (corrupted)");
-  }
-  uint32_t stored_crc;
-  std::memcpy(&stored_crc, bytes.data() + bytes.size() - 4, 4);
-  if (Crc32(bytes.data(), bytes.size() - 4) != stored_crc) {
-    PLACEDB_THROW_RUNTIME(path, ": checksum mismatch (the file is corrupted)");
-  }
-  if (type != static_cast<uint32_t>(FeatureType::kOrb) &&
-      type != static_cast<uint32_t>(FeatureType::kSurf)) {
-    PLACEDB_THROW_RUNTIME(path, ": unknown feature type ", type);
-  }
-  feature_type_ = static_cast<FeatureType>(type);
-  descriptor_bytes_ = static_cast<int>(row_bytes);
+  std::error_code ec;
+  PLACEDB_CHECK(fs::is_directory(dir, ec), "database directory does not exist: ", dir);
+  const uint32_t num_sections = 4;
+  const size_t table_end = kf::kHeaderBytes + num_sections * kf::kSectionEntryBytes;
+  char header[kf::kHeaderBytes + 4 * kf::kSectionEntryBytes] = {};
 
-  // Every keyframe record is read (they are small and hold the ids); only the
-  // kept keyframes' keypoints and strings are decoded.
-  BinaryReader r = header;
-  struct Record {
-    Keyframe keyframe;
-    uint64_t feature_offset = 0;
-    uint32_t feature_count = 0;
-    uint64_t string_offset = 0;
-    uint32_t source_len = 0, image_len = 0;
+  const std::string tmp_name = "keyframes.writing.bin";
+  AtomicFileWriter out((fs::path(dir) / tmp_name).string());
+  out.Write(header, sizeof(header));  // filled in at the end
+  out.Align(kf::kSectionAlignment);
+  struct Written {
+    uint64_t offset, bytes, checksum;
   };
-  std::vector<Record> records(num_keyframes);
-  std::vector<int32_t> ids(num_keyframes);
-  for (uint64_t i = 0; i < num_keyframes; ++i) {
-    Record& rec = records[i];
-    Keyframe& k = rec.keyframe;
-    k.id = r.Get<int32_t>();
-    k.crop_channel = r.Get<int32_t>();
-    k.crop.x = r.Get<int32_t>();
-    k.crop.y = r.Get<int32_t>();
-    k.crop.width = r.Get<int32_t>();
-    k.crop.height = r.Get<int32_t>();
-    k.original_size.width = r.Get<int32_t>();
-    k.original_size.height = r.Get<int32_t>();
-    k.stored_size.width = r.Get<int32_t>();
-    k.stored_size.height = r.Get<int32_t>();
-    k.timestamp = r.Get<double>();
-    k.scale = r.Get<double>();
-    const bool has_pose = r.Get<uint32_t>() != 0;
-    r.Get<uint32_t>();
-    Pose pose;
-    const double tx = r.Get<double>(), ty = r.Get<double>(), tz = r.Get<double>();
-    const double qx = r.Get<double>(), qy = r.Get<double>(), qz = r.Get<double>(),
-                 qw = r.Get<double>();
-    pose.translation = Eigen::Vector3d(tx, ty, tz);
-    pose.rotation = Eigen::Quaterniond(qw, qx, qy, qz);
-    if (has_pose) k.pose = pose;
-    rec.feature_offset = r.Get<uint64_t>();
-    rec.feature_count = r.Get<uint32_t>();
-    rec.source_len = r.Get<uint32_t>();
-    rec.string_offset = r.Get<uint64_t>();
-    rec.image_len = r.Get<uint32_t>();
-    r.Get<uint32_t>();
-    if (rec.feature_offset > num_features ||
-        rec.feature_count > num_features - rec.feature_offset) {
-      PLACEDB_THROW_RUNTIME(path, ": keyframe ", k.id, " refers to features beyond the file");
-    }
-    if (rec.string_offset > string_bytes ||
-        uint64_t{rec.source_len} + rec.image_len > string_bytes - rec.string_offset) {
-      PLACEDB_THROW_RUNTIME(path, ": keyframe ", k.id, " refers to strings beyond the file");
-    }
-    ids[i] = k.id;
-  }
-  {
-    std::unordered_set<int32_t> seen;
-    for (const int32_t id : ids) {
-      if (!seen.insert(id).second)
-        PLACEDB_THROW_RUNTIME(path, ": keyframe id ", id, " appears twice");
-    }
-  }
-  const std::vector<size_t> keep = SelectKeyframes(subset, num_keyframes, ids);
-  const size_t keypoints_at = r.position();
-  constexpr size_t kKeypointBytes = 28;
-  size_t descriptors_at = keypoints_at + num_features * kKeypointBytes;
-  descriptors_at =
-      (descriptors_at + kDescriptorAlignment - 1) / kDescriptorAlignment * kDescriptorAlignment;
-  const size_t strings_at = descriptors_at + num_features * row_bytes;
-  size_t kept_features = 0;
-  for (const size_t i : keep) kept_features += records[i].feature_count;
-  keyframes_.reserve(keep.size());
-  keypoints_.reserve(kept_features);
-  laplacian_.reserve(kept_features);
-  for (const size_t i : keep) {
-    Record& rec = records[i];
-    BinaryReader kr(bytes.data() + keypoints_at + rec.feature_offset * kKeypointBytes,
-                    rec.feature_count * kKeypointBytes, path);
-    row_offset_.push_back(rec.feature_offset);
-    local_offset_.push_back(keypoints_.size());
-    feature_count_.push_back(rec.feature_count);
-    for (uint32_t f = 0; f < rec.feature_count; ++f) {
-      cv::KeyPoint kp;
-      kp.pt.x = kr.Get<float>();
-      kp.pt.y = kr.Get<float>();
-      kp.size = kr.Get<float>();
-      kp.angle = kr.Get<float>();
-      kp.response = kr.Get<float>();
-      kp.octave = kr.Get<int32_t>();
-      kp.class_id = kr.Get<int32_t>();
-      keypoints_.push_back(kp);
-      laplacian_.push_back(kp.class_id < 0 ? -1 : 1);
-    }
-    const char* strings = bytes.data() + strings_at + rec.string_offset;
-    rec.keyframe.source.assign(strings, rec.source_len);
-    rec.keyframe.image_file.assign(strings + rec.source_len, rec.image_len);
-    index_of_id_.emplace(rec.keyframe.id, static_cast<int>(keyframes_.size()));
-    keyframes_.push_back(std::move(rec.keyframe));
-  }
-  // The descriptors stay where they are, in the mapping (32-byte aligned in
-  // the file, and mmap returns page-aligned memory).
-  mapped_descriptors_ = reinterpret_cast<const uint8_t*>(file->data()) + descriptors_at;
-  mapping_ = std::move(file);
-  subset_ = subset;
-  keyframes_in_file_ = num_keyframes;
-}
+  auto section = [&](const auto& write_body) {
+    out.Align(kf::kSectionAlignment);
+    Checksum64Stream sum;
+    const uint64_t begin = out.position();
+    write_body([&](const void* data, size_t size) {
+      out.Write(data, size);
+      sum.Update(data, size);
+    });
+    return Written{begin, out.position() - begin, sum.Digest()};
+  };
 
-void Database::Save(const std::string& dir) const {
-  PLACEDB_CHECK(fs::is_directory(dir), "database directory does not exist: ", dir);
-  const std::string bytes = EncodeKeyframes();
-  WriteFileAtomic((fs::path(dir) / kKeyframesFile).string(), bytes);
+  // Keyframes, then the string table they point into.
+  uint64_t feature_offset = 0, string_offset = 0;
+  const Written keyframes = section([&](auto put) {
+    char r[kf::kKeyframeRecordBytes];
+    for (size_t i = 0; i < keyframes_.size(); ++i) {
+      const Keyframe& k = keyframes_[i];
+      std::memset(r, 0, sizeof(r));
+      SetField<int32_t>(r, rec::kId, k.id);
+      SetField<int32_t>(r, rec::kCropChannel, k.crop_channel);
+      SetField<int32_t>(r, rec::kCropX, k.crop.x);
+      SetField<int32_t>(r, rec::kCropY, k.crop.y);
+      SetField<int32_t>(r, rec::kCropW, k.crop.width);
+      SetField<int32_t>(r, rec::kCropH, k.crop.height);
+      SetField<int32_t>(r, rec::kOrigW, k.original_size.width);
+      SetField<int32_t>(r, rec::kOrigH, k.original_size.height);
+      SetField<int32_t>(r, rec::kStoredW, k.stored_size.width);
+      SetField<int32_t>(r, rec::kStoredH, k.stored_size.height);
+      SetField<double>(r, rec::kTimestamp, k.timestamp);
+      SetField<double>(r, rec::kScale, k.scale);
+      SetField<uint32_t>(r, rec::kHasPose, k.pose ? 1u : 0u);
+      SetField<uint32_t>(r, rec::kPositive, positive_count_[i]);
+      const Pose pose = k.pose.value_or(Pose());
+      for (int c = 0; c < 3; ++c) SetField<double>(r, rec::kTx + 8 * c, pose.translation[c]);
+      const Eigen::Vector4d q = pose.rotation.coeffs();  // x, y, z, w
+      for (int c = 0; c < 4; ++c) SetField<double>(r, rec::kQx + 8 * c, q[c]);
+      SetField<uint64_t>(r, rec::kFeatureOffset, feature_offset);
+      SetField<uint32_t>(r, rec::kFeatureCount, feature_count_[i]);
+      SetField<uint32_t>(r, rec::kSourceLen, static_cast<uint32_t>(k.source.size()));
+      SetField<uint64_t>(r, rec::kStringOffset, string_offset);
+      SetField<uint32_t>(r, rec::kImageLen, static_cast<uint32_t>(k.image_file.size()));
+      put(r, sizeof(r));
+      feature_offset += feature_count_[i];
+      string_offset += k.source.size() + k.image_file.size();
+    }
+  });
+  const Written strings = section([&](auto put) {
+    for (const Keyframe& k : keyframes_) {
+      put(k.source.data(), k.source.size());
+      put(k.image_file.data(), k.image_file.size());
+    }
+  });
+  const Written keypoints = section([&](auto put) {
+    for (size_t i = 0; i < keyframes_.size(); ++i) {
+      const Span<cv::KeyPoint> kp = Keypoints(i);
+      put(kp.data(), kp.size() * sizeof(cv::KeyPoint));
+    }
+  });
+  const Written descriptors = section([&](auto put) {
+    for (size_t i = 0; i < keyframes_.size(); ++i) {
+      const DescriptorBlock b = Descriptors(i);
+      put(b.data, static_cast<size_t>(b.rows) * b.row_bytes);
+    }
+  });
+  const uint64_t file_bytes = out.position();
+
+  std::memcpy(header, kf::kMagic, sizeof(kf::kMagic));
+  SetField<uint32_t>(header, 8, kf::kVersion);
+  SetField<uint32_t>(header, 12, kf::kHeaderBytes);
+  SetField<uint32_t>(header, 16, static_cast<uint32_t>(feature_type_));
+  SetField<uint32_t>(header, 20, static_cast<uint32_t>(descriptor_bytes_));
+  SetField<uint32_t>(header, 24, num_sections);
+  SetField<uint64_t>(header, 32, keyframes_.size());
+  SetField<uint64_t>(header, 40, num_features_);
+  SetField<uint64_t>(header, 48, file_bytes);
+  const std::pair<uint32_t, Written> table[] = {{kf::kKeyframes, keyframes},
+                                                {kf::kStrings, strings},
+                                                {kf::kKeypoints, keypoints},
+                                                {kf::kDescriptors, descriptors}};
+  for (uint32_t s = 0; s < num_sections; ++s) {
+    char* e = header + kf::kHeaderBytes + s * kf::kSectionEntryBytes;
+    SetField<uint32_t>(e, 0, table[s].first);
+    SetField<uint64_t>(e, 8, table[s].second.offset);
+    SetField<uint64_t>(e, 16, table[s].second.bytes);
+    SetField<uint64_t>(e, 24, table[s].second.checksum);
+  }
+  const uint64_t checksum = HeaderChecksum(header, num_sections);
+  SetField<uint64_t>(header, kf::kChecksumOffset, checksum);
+  static_assert(sizeof(header) == kf::kHeaderBytes + 4 * kf::kSectionEntryBytes, "header size");
+  (void)table_end;
+  out.WriteAt(0, header, sizeof(header));
+  out.Commit();  // keyframes.writing.bin, durable
+
+  // The new generation under its own name, then the manifest that names it,
+  // then the old generation goes: a crash leaves one complete pair.
+  SaveResult result;
+  result.keyframes_file = KeyframesFileName(checksum);
+  result.keyframes_bytes = file_bytes;
+  const fs::path final_path = fs::path(dir) / result.keyframes_file;
+  fs::rename(fs::path(dir) / tmp_name, final_path);
+  SyncDirectory(dir);
+
   nlohmann::json manifest = info_;
   manifest["format"] = "placedb-database";
   manifest["format_version"] = kDatabaseFormatVersion;
   manifest["feature_type"] = FeatureTypeName(feature_type_);
   manifest["descriptor_bytes"] = descriptor_bytes_;
   manifest["counts"]["keyframes"] = keyframes_.size();
-  manifest["counts"]["features"] = keypoints_.size();
-  if (!subset_.all()) manifest["subset_of"] = {{"subset", subset_.Describe()}};
-  manifest["files"]["keyframes"] = kKeyframesFile;
-  manifest["files"]["keyframes_bytes"] = bytes.size();
-  manifest["files"]["keyframes_crc32"] = Crc32(bytes.data(), bytes.size());
+  manifest["counts"]["features"] = num_features_;
+  manifest["files"] = {{"keyframes", result.keyframes_file},
+                       {"keyframes_bytes", file_bytes},
+                       {"keyframes_checksum", ChecksumHex(checksum)}};
+  if (!subset_.all()) manifest["subset_of"] = subset_.Describe();
   WriteFileAtomic((fs::path(dir) / kManifestFile).string(), manifest.dump(2) + "\n");
+
+  for (const auto& entry : fs::directory_iterator(dir, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (IsKeyframesFileName(name) && name != result.keyframes_file) fs::remove(entry.path(), ec);
+  }
+  return result;
+}
+
+uint64_t keyframe_file::Reseal(std::string* bytes, bool fix_size) {
+  if (bytes->size() < kHeaderBytes) return 0;
+  char* b = bytes->data();
+  const uint32_t num_sections = std::min(Field<uint32_t>(b, 24), kMaxSections);
+  if (kHeaderBytes + static_cast<size_t>(num_sections) * kSectionEntryBytes > bytes->size())
+    return 0;
+  if (fix_size) SetField<uint64_t>(b, 48, bytes->size());
+  for (uint32_t s = 0; s < num_sections; ++s) {
+    char* e = b + kHeaderBytes + s * kSectionEntryBytes;
+    const uint64_t offset = Field<uint64_t>(e, 8), size = Field<uint64_t>(e, 16);
+    if (offset <= bytes->size() && size <= bytes->size() - offset) {
+      SetField<uint64_t>(e, 24, Checksum64(b + offset, size));
+    }
+  }
+  const uint64_t checksum = HeaderChecksum(b, num_sections);
+  SetField<uint64_t>(b, kChecksumOffset, checksum);
+  return checksum;
+}
+
+// ---- reading ------------------------------------------------------------------
+
+void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const std::string& shown,
+                                  const LoadOptions& options) {
+  const char* b = file->data();
+  const size_t size = file->size();
+  auto fail = [&](const auto&... what) { PLACEDB_THROW_RUNTIME(shown, ": ", what...); };
+  // A file cut inside the magic (a prefix of it, or empty) is truncated, not
+  // a different kind of file.
+  if (size < sizeof(kf::kMagic) && (size == 0 || std::memcmp(b, kf::kMagic, size) == 0))
+    fail("file is truncated (", size, " bytes)");
+  if (size < sizeof(kf::kMagic) || std::memcmp(b, kf::kMagic, sizeof(kf::kMagic)) != 0)
+    fail("not a placedb keyframe file (wrong magic)");
+  if (size < kf::kHeaderBytes) fail("file is truncated (", size, " bytes)");
+  const uint32_t version = Field<uint32_t>(b, 8);
+  if (version != kf::kVersion)
+    fail("format version ", version, " is not supported (this placedb reads version ", kf::kVersion,
+         ")");
+  if (Field<uint32_t>(b, 12) != kf::kHeaderBytes) fail("bad header size ", Field<uint32_t>(b, 12));
+  const uint64_t file_bytes = Field<uint64_t>(b, 48);
+  if (file_bytes != size) {
+    fail(size < file_bytes ? "file is truncated" : "file has unexpected trailing bytes", " (", size,
+         " bytes, the header says ", file_bytes, ")");
+  }
+  const uint32_t num_sections = Field<uint32_t>(b, 24);
+  if (num_sections < kf::kMinSections || num_sections > kf::kMaxSections)
+    fail("bad section count ", num_sections);
+  const size_t table_end = kf::kHeaderBytes + num_sections * kf::kSectionEntryBytes;
+  if (table_end > size) fail("file is truncated inside the section table");
+  if (HeaderChecksum(b, num_sections) != Field<uint64_t>(b, kf::kChecksumOffset))
+    fail("header checksum mismatch (the file is corrupted)");
+  if (Field<uint32_t>(b, 28) != 0) fail("reserved header field is not 0");
+
+  const uint32_t type = Field<uint32_t>(b, 16);
+  if (type != static_cast<uint32_t>(FeatureType::kOrb) &&
+      type != static_cast<uint32_t>(FeatureType::kSurf)) {
+    fail("unknown feature type ", type);
+  }
+  feature_type_ = static_cast<FeatureType>(type);
+  const uint32_t row_bytes = Field<uint32_t>(b, 20);
+  const bool width_ok =
+      feature_type_ == FeatureType::kOrb ? row_bytes == 32 : (row_bytes == 256 || row_bytes == 512);
+  if (!width_ok)
+    fail(FeatureTypeName(feature_type_), " descriptors cannot be ", row_bytes, " bytes wide");
+  descriptor_bytes_ = static_cast<int>(row_bytes);
+  const uint64_t num_keyframes = Field<uint64_t>(b, 32);
+  const uint64_t num_features = Field<uint64_t>(b, 40);
+  // Bounds that keep every product below below 2^64.
+  if (num_keyframes > size / kf::kKeyframeRecordBytes)
+    fail("keyframe count ", num_keyframes, " exceeds the file");
+  if (num_features > size / kf::kKeypointRecordBytes || num_features > size / row_bytes)
+    fail("feature count ", num_features, " exceeds the file");
+
+  // The section table: known kinds once each, aligned, inside the file, not
+  // overlapping each other or the table.
+  struct Section {
+    uint64_t offset = 0, bytes = 0, checksum = 0;
+    bool present = false;
+  };
+  Section sections[5];
+  std::vector<std::pair<uint64_t, uint64_t>> extents;
+  for (uint32_t s = 0; s < num_sections; ++s) {
+    const char* e = b + kf::kHeaderBytes + s * kf::kSectionEntryBytes;
+    const uint32_t kind = Field<uint32_t>(e, 0);
+    const uint64_t offset = Field<uint64_t>(e, 8), bytes = Field<uint64_t>(e, 16);
+    if (Field<uint32_t>(e, 4) != 0) fail("section ", s, ": reserved field is not 0");
+    if (offset % kf::kSectionAlignment != 0) fail("section ", s, " is not aligned");
+    if (offset < table_end || offset > size || bytes > size - offset)
+      fail("section ", s, " (offset ", offset, ", ", bytes, " bytes) lies outside the file");
+    extents.emplace_back(offset, bytes);
+    if (kind >= kf::kKeyframes && kind <= kf::kDescriptors) {
+      if (sections[kind].present) fail("section kind ", kind, " appears twice");
+      sections[kind] = {offset, bytes, Field<uint64_t>(e, 24), true};
+    }
+  }
+  std::sort(extents.begin(), extents.end());
+  for (size_t i = 1; i < extents.size(); ++i) {
+    if (extents[i].first < extents[i - 1].first + extents[i - 1].second) fail("sections overlap");
+  }
+  for (uint32_t kind = kf::kKeyframes; kind <= kf::kDescriptors; ++kind) {
+    if (!sections[kind].present) fail("section kind ", kind, " is missing");
+  }
+  const Section& keyframes = sections[kf::kKeyframes];
+  const Section& strings = sections[kf::kStrings];
+  const Section& keypoints = sections[kf::kKeypoints];
+  const Section& descriptors = sections[kf::kDescriptors];
+  if (keyframes.bytes != num_keyframes * kf::kKeyframeRecordBytes)
+    fail("the keyframe section's size does not match ", num_keyframes, " keyframes");
+  if (keypoints.bytes != num_features * kf::kKeypointRecordBytes)
+    fail("the keypoint section's size does not match ", num_features, " features");
+  if (descriptors.bytes != num_features * row_bytes)
+    fail("the descriptor section's size does not match ", num_features, " features");
+  const bool with_features = options.contents == LoadContents::kAll;
+  auto verify = [&](const Section& s, const char* what) {
+    if (Checksum64(b + s.offset, s.bytes) != s.checksum)
+      fail(what, " checksum mismatch (the file is corrupted)");
+  };
+  verify(keyframes, "keyframe section");
+  verify(strings, "string section");
+  if (with_features) {
+    verify(keypoints, "keypoint section");
+    verify(descriptors, "descriptor section");
+  }
+
+  // Keyframe records: every value checked; ranges back to back.
+  std::vector<Keyframe> all(num_keyframes);
+  std::vector<uint64_t> offsets(num_keyframes);
+  std::vector<uint32_t> counts(num_keyframes), positives(num_keyframes);
+  std::vector<int32_t> ids(num_keyframes);
+  uint64_t expected_offset = 0;
+  std::unordered_set<int32_t> seen;
+  seen.reserve(num_keyframes);
+  for (uint64_t i = 0; i < num_keyframes; ++i) {
+    const char* r = b + keyframes.offset + i * kf::kKeyframeRecordBytes;
+    Keyframe& k = all[i];
+    k.id = Field<int32_t>(r, rec::kId);
+    k.crop_channel = Field<int32_t>(r, rec::kCropChannel);
+    k.crop = cv::Rect(Field<int32_t>(r, rec::kCropX), Field<int32_t>(r, rec::kCropY),
+                      Field<int32_t>(r, rec::kCropW), Field<int32_t>(r, rec::kCropH));
+    k.original_size = cv::Size(Field<int32_t>(r, rec::kOrigW), Field<int32_t>(r, rec::kOrigH));
+    k.stored_size = cv::Size(Field<int32_t>(r, rec::kStoredW), Field<int32_t>(r, rec::kStoredH));
+    k.timestamp = Field<double>(r, rec::kTimestamp);
+    k.scale = Field<double>(r, rec::kScale);
+    const uint32_t has_pose = Field<uint32_t>(r, rec::kHasPose);
+    if (has_pose > 1) fail("keyframe record ", i, ": bad pose flag ", has_pose);
+    if (has_pose) {
+      Pose pose;
+      for (int c = 0; c < 3; ++c) pose.translation[c] = Field<double>(r, rec::kTx + 8 * c);
+      pose.rotation =
+          Eigen::Quaterniond(Field<double>(r, rec::kQx + 24), Field<double>(r, rec::kQx),
+                             Field<double>(r, rec::kQx + 8), Field<double>(r, rec::kQx + 16));
+      k.pose = pose;
+    }
+    const std::string reason = CheckKeyframe(k);
+    if (!reason.empty()) fail("keyframe record ", i, " (id ", k.id, "): ", reason);
+    if (!seen.insert(k.id).second) fail("keyframe id ", k.id, " appears twice");
+    ids[i] = k.id;
+    offsets[i] = Field<uint64_t>(r, rec::kFeatureOffset);
+    counts[i] = Field<uint32_t>(r, rec::kFeatureCount);
+    positives[i] = Field<uint32_t>(r, rec::kPositive);
+    if (offsets[i] != expected_offset || counts[i] > num_features - expected_offset)
+      fail("keyframe ", k.id, " refers to features outside its range");
+    expected_offset += counts[i];
+    if (positives[i] > counts[i] || (feature_type_ == FeatureType::kOrb && positives[i] != 0))
+      fail("keyframe ", k.id, ": bad Laplacian split ", positives[i], " of ", counts[i]);
+    const uint64_t string_offset = Field<uint64_t>(r, rec::kStringOffset);
+    const uint64_t source_len = Field<uint32_t>(r, rec::kSourceLen);
+    const uint64_t image_len = Field<uint32_t>(r, rec::kImageLen);
+    if (source_len > kMaxPathBytes || image_len > kMaxPathBytes || string_offset > strings.bytes ||
+        source_len + image_len > strings.bytes - string_offset) {
+      fail("keyframe ", k.id, " refers to strings outside the string section");
+    }
+    if (Field<uint32_t>(r, rec::kReserved) != 0)
+      fail("keyframe record ", i, ": reserved field is not 0");
+    const char* text = b + strings.offset + string_offset;
+    k.source.assign(text, source_len);
+    k.image_file.assign(text + source_len, image_len);
+  }
+  if (expected_offset != num_features)
+    fail("the keyframes own ", expected_offset, " features but the file holds ", num_features);
+
+  // Keep the subset; check its keypoints in place.
+  const std::vector<size_t> keep = SelectKeyframes(options.subset, num_keyframes, ids);
+  const auto* file_keypoints =
+      reinterpret_cast<const cv::KeyPoint*>(b + keypoints.offset);  // 64-byte aligned
+  keyframes_.reserve(keep.size());
+  for (const size_t i : keep) {
+    if (with_features) {
+      for (uint32_t f = 0; f < counts[i]; ++f) {
+        const cv::KeyPoint& kp = file_keypoints[offsets[i] + f];
+        if (!std::isfinite(kp.pt.x) || !std::isfinite(kp.pt.y) || !std::isfinite(kp.size) ||
+            !std::isfinite(kp.angle) || !std::isfinite(kp.response)) {
+          fail("keyframe ", all[i].id, " has a keypoint that is not finite");
+        }
+        if (feature_type_ == FeatureType::kSurf && (kp.class_id >= 0) != (f < positives[i]))
+          fail("keyframe ", all[i].id, ": keypoints are not grouped by Laplacian sign");
+      }
+    }
+    row_offset_.push_back(offsets[i]);
+    feature_count_.push_back(counts[i]);
+    positive_count_.push_back(positives[i]);
+    num_features_ += counts[i];
+    index_of_id_.emplace(all[i].id, static_cast<int>(keyframes_.size()));
+    keyframes_.push_back(std::move(all[i]));
+  }
+  has_features_ = with_features;
+  mapped_keypoints_ = file_keypoints;
+  mapped_descriptors_ = reinterpret_cast<const uint8_t*>(b + descriptors.offset);
+  mapping_ = std::move(file);
+  subset_ = options.subset;
+  keyframes_in_file_ = num_keyframes;
 }
 
 Database Database::Load(const std::string& dir, const KeyframeSubset& subset) {
-  PLACEDB_CHECK_OPTIONS(subset);
+  LoadOptions options;
+  options.subset = subset;
+  return Load(dir, options);
+}
+
+Database Database::Load(const std::string& dir, const LoadOptions& options) {
+  PLACEDB_CHECK_OPTIONS(options.subset);
+  if (!HostIsLittleEndian()) PLACEDB_THROW_RUNTIME("placedb databases need a little-endian host");
   std::error_code ec;
   if (!fs::is_directory(dir, ec))
     PLACEDB_THROW_RUNTIME("no database at ", dir, " (not a directory)");
   const std::string manifest_path = (fs::path(dir) / kManifestFile).string();
-  if (!fs::exists(manifest_path, ec)) {
-    PLACEDB_THROW_RUNTIME("no database at ", dir, " (", kManifestFile, " is missing)");
-  }
-  nlohmann::json manifest;
-  try {
-    manifest = nlohmann::json::parse(ReadFileToString(manifest_path));
-  } catch (const nlohmann::json::exception& e) {
-    PLACEDB_THROW_RUNTIME(manifest_path, ": not valid JSON (", e.what(), ")");
-  }
-  // Fields of the wrong JSON type would throw nlohmann's type_error, which is
-  // no std::runtime_error: read them all here and report a malformed manifest.
-  std::string format, manifest_type;
-  uint32_t version = 0;
-  std::optional<uint64_t> manifest_keyframes;
-  try {
-    if (manifest.is_object()) {
-      format = manifest.value("format", "");
-      version = manifest.value("format_version", 0u);
-      manifest_type = manifest.value("feature_type", "");
-      if (manifest.contains("counts")) {
-        manifest_keyframes = manifest["counts"].value("keyframes", uint64_t{0});
+  // A rebuild may replace the files (or the whole directory) between our
+  // reads: the manifest then names a file that is gone, and reading again
+  // gives the new generation.
+  constexpr int kAttempts = 8;
+  for (int attempt = 1;; ++attempt) {
+    const DirectoryHandle handle(dir);
+    std::string text;
+    if (!handle.ReadFile(kManifestFile, &text, kMaxManifestBytes)) {
+      if (handle.MapFile("keyframes.bin") ||
+          fs::exists(fs::path(dir) / "keyframes.writing.bin", ec)) {
+        PLACEDB_THROW_RUNTIME("database ", dir, " is incomplete: ", kManifestFile, " is missing");
       }
+      PLACEDB_THROW_RUNTIME("no database at ", dir, " (", kManifestFile, " is missing)");
     }
-  } catch (const nlohmann::json::exception& e) {
-    PLACEDB_THROW_RUNTIME(manifest_path, ": malformed manifest (", e.what(), ")");
+    nlohmann::json manifest;
+    try {
+      manifest = nlohmann::json::parse(text);
+    } catch (const nlohmann::json::exception& e) {
+      PLACEDB_THROW_RUNTIME(manifest_path, ": not valid JSON (", e.what(), ")");
+    }
+    if (!manifest.is_object() || !manifest.contains("format") ||
+        manifest["format"] != "placedb-database") {
+      PLACEDB_THROW_RUNTIME(manifest_path, ": not a placedb database manifest");
+    }
+    const JsonReader m(manifest, manifest_path, /*runtime_errors=*/true);
+    const int64_t version = m.Integer("format_version", 0, INT32_MAX);
+    if (version == 1) {
+      std::string source = "its source images";
+      if (manifest.contains("source") && manifest["source"].is_string())
+        source = manifest["source"].get<std::string>();
+      PLACEDB_THROW_RUNTIME(
+          dir, ": database format version 1 is no longer read (this placedb reads version ",
+          kDatabaseFormatVersion, "); rebuild it with `placedb build ... --out ", dir,
+          " --overwrite` from ", source, " (the settings are in its manifest.json)");
+    }
+    if (version != kDatabaseFormatVersion) {
+      PLACEDB_THROW_RUNTIME(dir, ": database format version ", version,
+                            " is not supported (this placedb reads version ",
+                            kDatabaseFormatVersion, ")");
+    }
+    const JsonReader files = m.Child("files");
+    const std::string name = files.String("keyframes");
+    if (!IsKeyframesFileName(name) || name == "keyframes.bin")
+      files.Fail("keyframes", "is not a keyframe file name");
+    const uint64_t expected_bytes =
+        static_cast<uint64_t>(files.Integer("keyframes_bytes", 0, INT64_MAX));
+    const std::string expected_checksum = files.String("keyframes_checksum");
+    const std::string feature_type = m.String("feature_type");
+    const int64_t descriptor_bytes = m.Integer("descriptor_bytes", 0, INT32_MAX);
+    const JsonReader counts = m.Child("counts");
+    const int64_t keyframes = counts.Integer("keyframes", 0, INT64_MAX);
+    const int64_t features = counts.Integer("features", 0, INT64_MAX);
+
+    std::shared_ptr<const MappedFile> file = handle.MapFile(name);
+    const std::string shown = (fs::path(dir) / name).string();
+    if (!file) {
+      if (attempt < kAttempts) continue;  // replaced under us: read the manifest again
+      PLACEDB_THROW_RUNTIME("database ", dir, " is incomplete: ", name, " (named by ",
+                            kManifestFile, ") is missing");
+    }
+    if (file->size() != expected_bytes) {
+      PLACEDB_THROW_RUNTIME(dir, ": ", name, " has ", file->size(), " bytes but ", kManifestFile,
+                            " records ", expected_bytes, " (corrupted database)");
+    }
+    Database db;
+    db.DecodeKeyframeFile(file, shown, options);
+    const std::string checksum = ChecksumHex(Field<uint64_t>(file->data(), kf::kChecksumOffset));
+    auto disagree = [&](const char* what) {
+      PLACEDB_THROW_RUNTIME(dir, ": ", kManifestFile, " and ", name, " disagree on ", what,
+                            " (corrupted database)");
+    };
+    if (checksum != expected_checksum) disagree("the file's checksum");
+    if (feature_type != FeatureTypeName(db.feature_type_)) disagree("the feature type");
+    if (descriptor_bytes != db.descriptor_bytes_) disagree("the descriptor width");
+    if (static_cast<uint64_t>(keyframes) != db.keyframes_in_file_)
+      disagree("the number of keyframes");
+    if (static_cast<uint64_t>(features) != Field<uint64_t>(file->data(), 40))
+      disagree("the number of features");
+    db.info_ = std::move(manifest);
+    db.keyframes_file_ = name;
+    db.keyframes_bytes_ = expected_bytes;
+    return db;
   }
-  if (!manifest.is_object() || format != "placedb-database") {
-    PLACEDB_THROW_RUNTIME(manifest_path, ": not a placedb database manifest");
-  }
-  if (version != kDatabaseFormatVersion) {
-    PLACEDB_THROW_RUNTIME(dir, ": database format version ", version,
-                          " is not supported (this placedb reads version ", kDatabaseFormatVersion,
-                          ")");
-  }
-  const std::string bin_path = (fs::path(dir) / kKeyframesFile).string();
-  if (!fs::exists(bin_path, ec)) {
-    PLACEDB_THROW_RUNTIME("database ", dir, " is incomplete: ", kKeyframesFile, " is missing");
-  }
-  Database db;
-  db.DecodeKeyframes(MappedFile::Open(bin_path), bin_path, subset);
-  if (manifest_type != FeatureTypeName(db.feature_type_)) {
-    PLACEDB_THROW_RUNTIME(dir, ": manifest says '", manifest_type, "' features but ",
-                          kKeyframesFile, " holds '", FeatureTypeName(db.feature_type_),
-                          "' features (corrupted database)");
-  }
-  if (manifest_keyframes && *manifest_keyframes != db.keyframes_in_file_) {
-    PLACEDB_THROW_RUNTIME(dir, ": manifest and ", kKeyframesFile,
-                          " disagree on the number of keyframes (corrupted database)");
-  }
-  db.info_ = manifest;
-  return db;
 }
 
 }  // namespace placedb

@@ -1,17 +1,29 @@
 #include "placedb/index/database.h"
 
 #include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
+#include <atomic>
+#include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
+#include <limits>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <random>
 #include <string>
+#include <thread>
 
 #include "placedb/feature/extractor.h"
+#include "placedb/index/keyframe_file.h"
+#include "placedb/match/ratio_matcher.h"
+#include "placedb/util/checksum.h"
 #include "placedb/util/file_io.h"
 #include "placedb/util/testing.h"
 
@@ -98,10 +110,7 @@ void ExpectDatabasesEqual(const Database& a, const Database& b) {
     if (da.rows > 0) {
       EXPECT_EQ(0, std::memcmp(da.data, dbk.data, static_cast<size_t>(da.rows) * da.row_bytes));
     }
-    ASSERT_EQ(da.laplacian == nullptr, dbk.laplacian == nullptr);
-    if (da.laplacian != nullptr && da.rows > 0) {
-      EXPECT_EQ(0, std::memcmp(da.laplacian, dbk.laplacian, da.rows));
-    }
+    EXPECT_EQ(da.positive_rows, dbk.positive_rows);
   }
 }
 
@@ -126,7 +135,6 @@ void RoundTrip(const ExtractorOptions& options, bool with_poses) {
   for (size_t i = 0; i < db.size(); ++i) EXPECT_GT(db.FeatureCount(i), 10u) << i;
   db.Save(tmp.Path());
   EXPECT_TRUE(fs::exists(tmp.Path("manifest.json")));
-  EXPECT_TRUE(fs::exists(tmp.Path("keyframes.bin")));
   const Database loaded = Database::Load(tmp.Path());
   ExpectDatabasesEqual(db, loaded);
   ExpectInfoPreserved(db.info(), loaded.info());
@@ -135,18 +143,22 @@ void RoundTrip(const ExtractorOptions& options, bool with_poses) {
   EXPECT_EQ(loaded.info()["feature_type"], FeatureTypeName(options.type));
   EXPECT_EQ(loaded.info()["counts"]["keyframes"], 3u);
   EXPECT_EQ(loaded.info()["counts"]["features"], db.num_features());
-  EXPECT_EQ(loaded.info()["files"]["keyframes_bytes"], FileSize(tmp.Path("keyframes.bin")));
+  const std::string bin_name = loaded.keyframes_file();
+  EXPECT_TRUE(Database::IsKeyframesFileName(bin_name)) << bin_name;
+  EXPECT_EQ(loaded.info()["files"]["keyframes"], bin_name);
+  EXPECT_EQ(loaded.info()["files"]["keyframes_bytes"], FileSize(tmp.Path(bin_name)));
+  EXPECT_EQ(loaded.keyframes_bytes(), FileSize(tmp.Path(bin_name)));
   EXPECT_EQ(loaded.IndexOfId(20), 1);
   EXPECT_EQ(loaded.IndexOfId(2), -1);
   EXPECT_EQ(loaded.keyframe(0).pose.has_value(), with_poses);
   EXPECT_FALSE(loaded.keyframe(1).pose.has_value());
 
   // Saving the loaded database again gives the same bytes and manifest.
-  const std::string bin1 = ReadFileToString(tmp.Path("keyframes.bin"));
+  const std::string bin1 = ReadFileToString(tmp.Path(bin_name));
   const std::string dir2 = tmp.Path("again");
   fs::create_directories(dir2);
-  loaded.Save(dir2);
-  EXPECT_EQ(ReadFileToString(dir2 + "/keyframes.bin"), bin1);
+  EXPECT_EQ(loaded.Save(dir2).keyframes_file, bin_name);  // named by its content
+  EXPECT_EQ(ReadFileToString(dir2 + "/" + bin_name), bin1);
   const Database loaded2 = Database::Load(dir2);
   ExpectDatabasesEqual(db, loaded2);
   EXPECT_EQ(loaded2.info(), loaded.info());
@@ -170,12 +182,12 @@ TEST(DatabaseTest, RoundTripSurf) {
   db.Save(tmp.Path());
   const Database loaded = Database::Load(tmp.Path());
   EXPECT_EQ(loaded.feature_type(), FeatureType::kSurf);
+  // Rows grouped by sign: the first positive_rows have class_id >= 0.
   const DescriptorBlock block = loaded.Descriptors(0);
-  ASSERT_NE(block.laplacian, nullptr);
-  int positive = 0, negative = 0;
-  for (int r = 0; r < block.rows; ++r) (block.laplacian[r] > 0 ? positive : negative)++;
-  EXPECT_GT(positive, 0);
-  EXPECT_GT(negative, 0);
+  const Span<cv::KeyPoint> kp = loaded.Keypoints(0);
+  EXPECT_GT(block.positive_rows, 0);
+  EXPECT_LT(block.positive_rows, block.rows);
+  for (int r = 0; r < block.rows; ++r) EXPECT_EQ(kp[r].class_id >= 0, r < block.positive_rows) << r;
 }
 
 TEST(DatabaseTest, LoadedDatabaseGrowsAndOutlivesItsFiles) {
@@ -192,7 +204,7 @@ TEST(DatabaseTest, LoadedDatabaseGrowsAndOutlivesItsFiles) {
   const Database four = MakeDatabase(ExtractorOptions(), 4, true);
   FeatureSet extra;
   extra.type = FeatureType::kOrb;
-  extra.keypoints = four.Keypoints(3);
+  extra.keypoints = four.Keypoints(3).ToVector();
   const DescriptorBlock block = four.Descriptors(3);
   extra.descriptors = cv::Mat(block.rows, 32, CV_8U, const_cast<uint8_t*>(block.data)).clone();
   loaded.AddKeyframe(four.keyframe(3), extra);
@@ -248,9 +260,7 @@ void ExpectSubsetOf(const Database& whole, const Database& part) {
     if (a.rows > 0) {
       EXPECT_EQ(0, std::memcmp(a.data, b.data, static_cast<size_t>(a.rows) * a.row_bytes));
     }
-    if (a.laplacian != nullptr && a.rows > 0) {
-      EXPECT_EQ(0, std::memcmp(a.laplacian, b.laplacian, a.rows));
-    }
+    EXPECT_EQ(a.positive_rows, b.positive_rows);
   }
 }
 
@@ -311,7 +321,7 @@ TEST(DatabaseTest, SubsetsOpenOnlyTheirKeyframes) {
     ExpectDatabasesEqual(ids, reloaded);
     FeatureSet extra;
     extra.type = options.type;
-    extra.keypoints = whole.Keypoints(3);
+    extra.keypoints = whole.Keypoints(3).ToVector();
     const DescriptorBlock block = whole.Descriptors(3);
     extra.descriptors =
         options.type == FeatureType::kOrb
@@ -323,7 +333,9 @@ TEST(DatabaseTest, SubsetsOpenOnlyTheirKeyframes) {
   }
 }
 
-// A saved 3-keyframe ORB database each corruption test starts from.
+// A saved 3-keyframe ORB database each corruption test starts from, and
+// ways to damage it: raw (the checksums catch it) or resealed (checksums
+// recomputed and the manifest updated, so the parser itself must catch it).
 class DatabaseFileTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() { db_ = new Database(MakeDatabase(ExtractorOptions(), 3, true)); }
@@ -332,76 +344,132 @@ class DatabaseFileTest : public ::testing::Test {
     db_ = nullptr;
   }
   void SetUp() override {
-    db_->Save(tmp_.Path());
-    bin_ = tmp_.Path("keyframes.bin");
+    name_ = db_->Save(tmp_.Path()).keyframes_file;
+    bin_ = tmp_.Path(name_);
     bytes_ = ReadFileToString(bin_);
+    manifest_ = nlohmann::json::parse(ReadFileToString(Dir() + "/manifest.json"));
     ASSERT_GT(bytes_.size(), 1000u);
   }
   std::string Dir() const { return tmp_.Path(); }
   auto LoadFn() const {
     return [dir = Dir()] { Database::Load(dir); };
   }
+  void WriteManifest(const nlohmann::json& m) const {
+    WriteBytes(Dir() + "/manifest.json", m.dump(2));
+  }
+  // Writes `bytes` as the keyframe file with fresh checksums, and a manifest
+  // that agrees with its size and checksum.
+  void WriteResealed(std::string bytes, bool fix_size = true) const {
+    const uint64_t checksum = keyframe_file::Reseal(&bytes, fix_size);
+    WriteBytes(bin_, bytes);
+    nlohmann::json m = manifest_;
+    m["files"]["keyframes_bytes"] = bytes.size();
+    m["files"]["keyframes_checksum"] = ChecksumHex(checksum);
+    WriteManifest(m);
+  }
+  // Offset of section `kind` in the saved file.
+  uint64_t SectionOffset(uint32_t kind) const {
+    for (uint32_t s = 0; s < 4; ++s) {
+      uint32_t k;
+      uint64_t offset;
+      std::memcpy(&k, &bytes_[64 + 32 * s], 4);
+      std::memcpy(&offset, &bytes_[64 + 32 * s + 8], 8);
+      if (k == kind) return offset;
+    }
+    ADD_FAILURE() << "no section " << kind;
+    return 0;
+  }
+  template <typename T>
+  static void Put(std::string* bytes, size_t at, T value) {
+    std::memcpy(&(*bytes)[at], &value, sizeof(T));
+  }
 
   static Database* db_;
   TempDir tmp_;
-  std::string bin_;
-  std::string bytes_;
+  std::string name_, bin_, bytes_;
+  nlohmann::json manifest_;
 };
 Database* DatabaseFileTest::db_ = nullptr;
 
 TEST_F(DatabaseFileTest, TruncatedKeyframesFile) {
-  const size_t header = 8 + 4 * 4 + 3 * 8;  // magic, 4 x u32, 3 x u64
   const size_t size = bytes_.size();
-  for (size_t cut : {size_t{0}, size_t{4}, size_t{10}, size_t{20}, header, header + 100,
-                     header + 3 * 152 + 50, size / 2, size - 5, size - 1}) {
+  for (size_t cut : {size_t{0}, size_t{4}, size_t{10}, size_t{63}, size_t{100}, size_t{200},
+                     size / 2, size - 5, size - 1}) {
+    // As the manifest says: the size disagrees.
     WriteBytes(bin_, bytes_.substr(0, cut));
+    EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "bytes but manifest.json records"))
+        << "cut at " << cut;
+    // With the manifest updated: the file itself says it is short.
+    nlohmann::json m = manifest_;
+    m["files"]["keyframes_bytes"] = cut;
+    WriteManifest(m);
     EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "truncated")) << "cut at " << cut;
   }
-  // The intact file loads again.
   WriteBytes(bin_, bytes_);
+  WriteManifest(manifest_);
   EXPECT_EQ(Database::Load(Dir()).size(), 3u);
 }
 
-TEST_F(DatabaseFileTest, CorruptedByteFailsChecksum) {
-  for (size_t at : {bytes_.size() / 2, bytes_.size() / 3, bytes_.size() - 10}) {
+TEST_F(DatabaseFileTest, CorruptedBytesFailTheirChecksum) {
+  for (const auto& [at, what] : std::vector<std::pair<size_t, std::string>>{
+           {20, "header checksum mismatch"},
+           {64 + 8, "header checksum mismatch"},  // the section table
+           {SectionOffset(keyframe_file::kKeyframes) + 5, "keyframe section checksum mismatch"},
+           {SectionOffset(keyframe_file::kStrings) + 3, "string section checksum mismatch"},
+           {SectionOffset(keyframe_file::kKeypoints) + 77, "keypoint section checksum mismatch"},
+           {bytes_.size() - 10, "descriptor section checksum mismatch"}}) {
     std::string bad = bytes_;
     bad[at] = static_cast<char>(bad[at] ^ 0x10);
     WriteBytes(bin_, bad);
-    EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "checksum mismatch")) << "byte " << at;
+    EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), what)) << "byte " << at;
   }
-  // Trailing garbage is caught too.
   WriteBytes(bin_, bytes_ + "xyz");
+  nlohmann::json m = manifest_;
+  m["files"]["keyframes_bytes"] = bytes_.size() + 3;
+  WriteManifest(m);
   EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "unexpected trailing bytes"));
 }
 
-TEST_F(DatabaseFileTest, WrongVersionInBinary) {
+// A keyframe table (a voter's view) reads neither keypoints nor descriptors:
+// damage there does not stop it, and the features cannot be asked for.
+TEST_F(DatabaseFileTest, KeyframeTableSkipsTheFeatures) {
   std::string bad = bytes_;
-  const uint32_t version = kDatabaseFormatVersion + 1;
-  std::memcpy(&bad[8], &version, 4);
-  const uint32_t crc = Crc32(bad.data(), bad.size() - 4);  // only the version is wrong
-  std::memcpy(&bad[bad.size() - 4], &crc, 4);
+  bad[bytes_.size() - 10] ^= 0x10;
   WriteBytes(bin_, bad);
+  LoadOptions table;
+  table.contents = LoadContents::kKeyframeTable;
+  const Database db = Database::Load(Dir(), table);
+  EXPECT_FALSE(db.has_features());
+  ASSERT_EQ(db.size(), 3u);
+  EXPECT_EQ(db.keyframe(0).id, 10);
+  EXPECT_TRUE(db.keyframe(0).pose.has_value());
+  EXPECT_EQ(db.FeatureCount(0), db_->FeatureCount(0));
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { db.Descriptors(0); }, "keyframe table"));
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { db.Keypoints(0); }, "keyframe table"));
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "descriptor section checksum mismatch"));
+}
+
+TEST_F(DatabaseFileTest, WrongVersions) {
+  std::string bad = bytes_;
+  Put<uint32_t>(&bad, 8, kDatabaseFormatVersion + 1);
+  WriteResealed(bad);
   EXPECT_TRUE(ThrowsWith<std::runtime_error>(
-      LoadFn(), "format version " + std::to_string(version) + " is not supported"));
-}
-
-TEST_F(DatabaseFileTest, DuplicateKeyframeIdInFile) {
-  // Keyframe records start after the 48-byte header, 152 bytes each, id first.
-  std::string bad = bytes_;
-  std::memcpy(&bad[48 + 152], &bad[48], 4);  // record 1 gets record 0's id
-  const uint32_t crc = Crc32(bad.data(), bad.size() - 4);
-  std::memcpy(&bad[bad.size() - 4], &crc, 4);
-  WriteBytes(bin_, bad);
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "appears twice"));
-}
-
-TEST_F(DatabaseFileTest, WrongVersionInManifest) {
-  nlohmann::json manifest = nlohmann::json::parse(ReadFileToString(Dir() + "/manifest.json"));
-  manifest["format_version"] = kDatabaseFormatVersion + 1;
-  WriteBytes(Dir() + "/manifest.json", manifest.dump(2));
+      LoadFn(),
+      "format version " + std::to_string(kDatabaseFormatVersion + 1) + " is not supported"));
+  WriteBytes(bin_, bytes_);
+  nlohmann::json m = manifest_;
+  m["format_version"] = kDatabaseFormatVersion + 1;
+  WriteManifest(m);
   EXPECT_TRUE(ThrowsWith<std::runtime_error>(
       LoadFn(), "database format version " + std::to_string(kDatabaseFormatVersion + 1) +
                     " is not supported"));
+  // A version 1 database says how to rebuild it.
+  m["format_version"] = 1;
+  m["source"] = "images:/data/loop [1..40]";
+  WriteManifest(m);
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(
+      LoadFn(), {"format version 1 is no longer read", "placedb build", "--overwrite",
+                 "images:/data/loop [1..40]"}));
 }
 
 TEST_F(DatabaseFileTest, WrongMagic) {
@@ -409,61 +477,338 @@ TEST_F(DatabaseFileTest, WrongMagic) {
   bad[0] = 'X';
   WriteBytes(bin_, bad);
   EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "wrong magic"));
-  WriteBytes(bin_, "this is a text file, not a database\n");
+  WriteResealed("this is a text file, not a database\n");
   EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "wrong magic"));
 }
 
-TEST_F(DatabaseFileTest, ManifestFeatureTypeDisagreesWithBinary) {
-  nlohmann::json manifest = nlohmann::json::parse(ReadFileToString(Dir() + "/manifest.json"));
-  ASSERT_EQ(manifest["feature_type"], "orb");
-  manifest["feature_type"] = "surf";
-  WriteBytes(Dir() + "/manifest.json", manifest.dump(2));
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "manifest says 'surf' features but"));
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "holds 'orb' features"));
+// Every field the manifest records of the keyframe file is checked against it.
+TEST_F(DatabaseFileTest, ManifestMustAgreeWithTheKeyframeFile) {
+  auto fails = [&](const std::function<void(nlohmann::json&)>& edit, const std::string& part) {
+    nlohmann::json m = manifest_;
+    edit(m);
+    WriteManifest(m);
+    return ThrowsWith<std::runtime_error>(LoadFn(), part);
+  };
+  EXPECT_TRUE(
+      fails([](nlohmann::json& m) { m["feature_type"] = "surf"; }, "disagree on the feature type"));
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m["descriptor_bytes"] = 64; },
+                    "disagree on the descriptor width"));
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m["counts"]["keyframes"] = 4; },
+                    "disagree on the number of keyframes"));
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m["counts"]["features"] = 5; },
+                    "disagree on the number of features"));
+  EXPECT_TRUE(
+      fails([](nlohmann::json& m) { m["files"]["keyframes_checksum"] = "0123456789abcdef"; },
+            "disagree on the file's checksum"));
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m["files"]["keyframes_bytes"] = 12; }, "records 12"));
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m["files"]["keyframes"] = "../../etc/passwd"; },
+                    "not a keyframe file name"));
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m["counts"]["features"] = true; },
+                    "features is not an integer"));
+  EXPECT_TRUE(
+      fails([](nlohmann::json& m) { m["counts"]["keyframes"] = -1; }, "keyframes is out of range"));
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m["format_version"] = "2"; },
+                    "format_version is not an integer"));
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m.erase("files"); }, "files is missing"));
+  WriteManifest(manifest_);
+  EXPECT_EQ(Database::Load(Dir()).size(), 3u);
 }
 
-TEST_F(DatabaseFileTest, ManifestCountDisagreesWithBinary) {
-  nlohmann::json manifest = nlohmann::json::parse(ReadFileToString(Dir() + "/manifest.json"));
-  manifest["counts"]["keyframes"] = 4;
-  WriteBytes(Dir() + "/manifest.json", manifest.dump(2));
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "disagree on the number of keyframes"));
-}
-
-TEST_F(DatabaseFileTest, MissingManifest) {
+TEST_F(DatabaseFileTest, MissingFiles) {
+  fs::remove(bin_);
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), {name_, "is missing"}));
   fs::remove(Dir() + "/manifest.json");
   EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "manifest.json is missing"));
-}
-
-TEST_F(DatabaseFileTest, MissingKeyframesFile) {
-  fs::remove(bin_);
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "keyframes.bin is missing"));
-}
-
-TEST_F(DatabaseFileTest, NotADirectory) {
   EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { Database::Load(Dir() + "/nothing_here"); },
                                              "(not a directory)"));
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { Database::Load(bin_); }, "(not a directory)"));
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { Database::Load(Dir() + "/manifest.json"); },
+                                             "(not a directory)"));
 }
 
 TEST_F(DatabaseFileTest, ManifestNotJson) {
-  fs::copy_file(Dir() + "/manifest.json", Dir() + "/manifest.json.bak");
   WriteBytes(Dir() + "/manifest.json", "{ not json");
   EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "not valid JSON"));
   WriteBytes(Dir() + "/manifest.json", "{\"format\": \"something-else\"}");
   EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "not a placedb database manifest"));
   WriteBytes(Dir() + "/manifest.json", "[1, 2, 3]");
   EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "not a placedb database manifest"));
-  // Fields of the wrong JSON type: a runtime_error, not nlohmann's type_error.
-  const nlohmann::json good = nlohmann::json::parse(ReadFileToString(Dir() + "/manifest.json.bak"));
-  for (const char* field : {"format", "format_version", "feature_type", "counts"}) {
-    nlohmann::json bad = good;
-    bad[field] = field == std::string("format") ? nlohmann::json(7) : nlohmann::json("x");
-    if (field == std::string("feature_type")) bad[field] = 3;
-    WriteBytes(Dir() + "/manifest.json", bad.dump());
-    EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "malformed manifest")) << field;
-  }
-  WriteBytes(Dir() + "/manifest.json", good.dump());
+  WriteBytes(Dir() + "/manifest.json", std::string("\x89PNG\r\n\x1a\n\0\0", 10));
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "not valid JSON"));
+  WriteManifest(manifest_);
   EXPECT_EQ(Database::Load(Dir()).size(), 3u);
+}
+
+// The defects found with hostile input, each with its regression test:
+// values that are impossible although every checksum is right.
+TEST_F(DatabaseFileTest, ImpossibleValuesWithValidChecksums) {
+  const size_t k0 = SectionOffset(keyframe_file::kKeyframes);
+  const size_t kp = SectionOffset(keyframe_file::kKeypoints);
+  struct Case {
+    std::string what;
+    std::function<void(std::string*)> edit;
+  };
+  const std::vector<Case> cases = {
+      {"features outside its range",
+       [&](std::string* b) {
+         Put<uint64_t>(b, k0 + 152 + 120, ~uint64_t{0} - 3);
+       }},  // offset wraps
+      {"features outside its range",
+       [&](std::string* b) { Put<uint32_t>(b, k0 + 128, 0xffffffffu); }},
+      {"strings outside the string section",
+       [&](std::string* b) {
+         Put<uint64_t>(b, k0 + 136, ~uint64_t{0} - 2);
+       }},  // string offset wraps
+      {"strings outside the string section",
+       [&](std::string* b) { Put<uint32_t>(b, k0 + 132, 60000); }},
+      {"id 0 is not >= 1", [&](std::string* b) { Put<int32_t>(b, k0, 0); }},
+      {"id -5 is not >= 1", [&](std::string* b) { Put<int32_t>(b, k0, -5); }},
+      {"appears twice", [&](std::string* b) { Put<int32_t>(b, k0 + 152, 10); }},
+      {"crop rectangle is negative", [&](std::string* b) { Put<int32_t>(b, k0 + 16, -3); }},
+      {"image size is negative", [&](std::string* b) { Put<int32_t>(b, k0 + 24, -640); }},
+      {"leaves the original image", [&](std::string* b) { Put<int32_t>(b, k0 + 8, 600); }},
+      {"crop channel 7", [&](std::string* b) { Put<int32_t>(b, k0 + 4, 7); }},
+      {"scale is not in (0, 64]", [&](std::string* b) { Put<double>(b, k0 + 48, std::nan("")); }},
+      {"scale is not in (0, 64]",
+       [&](std::string* b) { Put<double>(b, k0 + 48, std::numeric_limits<double>::infinity()); }},
+      {"scale is not in (0, 64]", [&](std::string* b) { Put<double>(b, k0 + 48, 0.0); }},
+      {"timestamp is not finite", [&](std::string* b) { Put<double>(b, k0 + 40, std::nan("")); }},
+      {"pose is not finite", [&](std::string* b) { Put<double>(b, k0 + 64, std::nan("")); }},
+      {"not of unit length",
+       [&](std::string* b) {
+         for (int c = 0; c < 4; ++c) Put<double>(b, k0 + 88 + 8 * c, 0.0);  // zero quaternion
+       }},
+      {"bad pose flag", [&](std::string* b) { Put<uint32_t>(b, k0 + 56, 7); }},
+      {"bad Laplacian split",
+       [&](std::string* b) { Put<uint32_t>(b, k0 + 60, 2); }},  // ORB has none
+      {"keypoint that is not finite", [&](std::string* b) { Put<float>(b, kp + 4, std::nan("")); }},
+      {"keypoint that is not finite",
+       [&](std::string* b) { Put<float>(b, kp + 28 + 8, std::numeric_limits<float>::infinity()); }},
+      {"cannot be 0 bytes wide", [&](std::string* b) { Put<uint32_t>(b, 20, 0); }},
+      {"cannot be 1 bytes wide", [&](std::string* b) { Put<uint32_t>(b, 20, 1); }},
+      {"cannot be 16 bytes wide", [&](std::string* b) { Put<uint32_t>(b, 20, 16); }},
+      {"unknown feature type 9", [&](std::string* b) { Put<uint32_t>(b, 16, 9); }},
+      {"keyframe count", [&](std::string* b) { Put<uint64_t>(b, 32, ~uint64_t{0} / 2); }},
+      {"feature count", [&](std::string* b) { Put<uint64_t>(b, 40, uint64_t{1} << 62); }},
+      {"bad section count", [&](std::string* b) { Put<uint32_t>(b, 24, 1000); }},
+      {"lies outside the file",
+       [&](std::string* b) { Put<uint64_t>(b, 64 + 8, ~uint64_t{0} - 63); }},
+      {"lies outside the file", [&](std::string* b) { Put<uint64_t>(b, 64 + 16, ~uint64_t{0}); }},
+      {"is not aligned", [&](std::string* b) { Put<uint64_t>(b, 64 + 32 + 8, 65); }},
+      {"appears twice",
+       [&](std::string* b) { Put<uint32_t>(b, 64 + 32, 1); }},  // two keyframe sections
+      {"sections overlap",
+       [&](std::string* b) {
+         uint64_t first;
+         std::memcpy(&first, &(*b)[64 + 8], 8);
+         Put<uint64_t>(b, 64 + 32 + 8, first);
+       }},
+      {"size does not match", [&](std::string* b) { Put<uint64_t>(b, 64 + 16, 152); }},
+  };
+  for (const Case& c : cases) {
+    std::string bad = bytes_;
+    c.edit(&bad);
+    WriteResealed(bad);
+    EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), c.what)) << c.what;
+  }
+  WriteResealed(bytes_);
+  EXPECT_EQ(Database::Load(Dir()).size(), 3u);
+}
+
+// The mutation test of the reader: 12 000 damaged keyframe files (bit flips,
+// byte runs, truncations, huge counts, offsets and lengths, swapped fields),
+// each resealed so the checksums pass and the parser itself is tested, and
+// 1 000 damaged manifests. Each either loads (the damage hit a descriptor
+// bit or a value that is still possible), and then answers a query, or fails
+// with std::runtime_error / std::invalid_argument; never a crash, a hang or
+// (under the sanitizers) a bad read.
+TEST_F(DatabaseFileTest, MutatedFilesNeverCrash) {
+  std::mt19937_64 rng(20261201);
+  const FeatureSet query =
+      FeatureExtractor::Create(ExtractorOptions())->Extract(cv::imread(RtabmapImage(42)));
+  int loaded = 0, rejected = 0;
+  auto attempt = [&] {
+    try {
+      const Database db = Database::Load(Dir());
+      // A database that loads must be safe to use.
+      std::vector<int8_t> lap;
+      const DescriptorBlock q = MakeDescriptorBlock(query, &lap);
+      for (size_t i = 0; i < db.size(); ++i) {
+        MatchDescriptors(q, db.Descriptors(i), MatchOptions());
+        for (const cv::KeyPoint& kp : db.Keypoints(i)) ASSERT_TRUE(std::isfinite(kp.pt.x));
+      }
+      ++loaded;
+    } catch (const std::runtime_error&) {
+      ++rejected;
+    } catch (const std::invalid_argument&) {
+      ++rejected;
+    }
+  };
+  const uint64_t interesting[] = {0,
+                                  1,
+                                  2,
+                                  3,
+                                  63,
+                                  64,
+                                  65,
+                                  151,
+                                  152,
+                                  0x7fffffff,
+                                  0x80000000,
+                                  0xffffffff,
+                                  uint64_t{1} << 32,
+                                  uint64_t{1} << 62,
+                                  ~uint64_t{0} / 2,
+                                  ~uint64_t{0} - 1,
+                                  ~uint64_t{0}};
+  constexpr int kFiles = 12000;
+  for (int i = 0; i < kFiles; ++i) {
+    std::string bad = bytes_;
+    const int kind = static_cast<int>(rng() % 6);
+    // Aim at the fields: the header and section table, the keyframe records
+    // and strings, the keypoints; now and then anywhere (descriptor bits are
+    // data, any value is possible).
+    const size_t table_end = 64 + 4 * 32;
+    const size_t records_end = SectionOffset(keyframe_file::kKeypoints);
+    const size_t features_at = SectionOffset(keyframe_file::kDescriptors);
+    const int region = static_cast<int>(rng() % 10);
+    const size_t from = region < 4 ? 0 : region < 7 ? table_end : region < 9 ? records_end : 0;
+    const size_t to = region < 4 ? table_end : region < 7 ? records_end : region < 9 ? features_at
+                                                                                    : bad.size();
+    const size_t span = to - from;
+    auto at_in_region = [&](size_t alignment) { return from + (rng() % (span / alignment)) * alignment; };
+    if (kind == 0) {  // bit flips
+      for (int f = 0, n = 1 + static_cast<int>(rng() % 4); f < n; ++f) {
+        bad[at_in_region(1)] ^= static_cast<char>(1 << (rng() % 8));
+      }
+    } else if (kind == 1) {  // a run of random bytes
+      const size_t at = at_in_region(1), n = 1 + rng() % 16;
+      for (size_t j = at; j < std::min(bad.size(), at + n); ++j) bad[j] = static_cast<char>(rng());
+    } else if (kind == 2) {  // an interesting 8-byte value at an 8-aligned offset
+      const size_t at = at_in_region(8);
+      Put<uint64_t>(&bad, at, interesting[rng() % (sizeof(interesting) / 8)]);
+    } else if (kind == 3) {  // an interesting 4-byte value at a 4-aligned offset
+      const size_t at = (rng() % (span / 4)) * 4;
+      Put<uint32_t>(&bad, at,
+                    static_cast<uint32_t>(interesting[rng() % (sizeof(interesting) / 8)]));
+    } else if (kind == 4) {  // truncation, or growth
+      if (rng() % 2) {
+        bad.resize(rng() % bad.size());
+      } else {
+        bad.append(1 + rng() % 200, static_cast<char>(rng()));
+      }
+    } else {  // a header or table field
+      const size_t at = (rng() % ((64 + 4 * 32) / 4)) * 4;
+      Put<uint32_t>(&bad, at, static_cast<uint32_t>(rng()));
+    }
+    WriteResealed(bad, /*fix_size=*/rng() % 8 != 0);
+    attempt();
+  }
+  // Manifests: every field replaced by a value of another type or range.
+  const std::vector<nlohmann::json> values = {nullptr,
+                                              true,
+                                              -1,
+                                              0,
+                                              2147483648LL,
+                                              1.5,
+                                              "x",
+                                              nlohmann::json::array(),
+                                              nlohmann::json::object()};
+  std::vector<std::vector<std::string>> paths = {{"format"},
+                                                 {"format_version"},
+                                                 {"feature_type"},
+                                                 {"descriptor_bytes"},
+                                                 {"counts"},
+                                                 {"counts", "keyframes"},
+                                                 {"counts", "features"},
+                                                 {"files"},
+                                                 {"files", "keyframes"},
+                                                 {"files", "keyframes_bytes"},
+                                                 {"files", "keyframes_checksum"}};
+  WriteBytes(bin_, bytes_);
+  constexpr int kManifests = 1000;
+  for (int i = 0; i < kManifests; ++i) {
+    nlohmann::json m = manifest_;
+    const auto& path = paths[rng() % paths.size()];
+    nlohmann::json* field = &m;
+    for (const std::string& key : path) field = &(*field)[key];
+    *field = values[rng() % values.size()];
+    if (rng() % 10 == 0) {
+      std::string text = m.dump();
+      text.resize(rng() % text.size());
+      WriteBytes(Dir() + "/manifest.json", text);
+    } else {
+      WriteManifest(m);
+    }
+    attempt();
+  }
+  std::printf("mutations: %d loaded, %d rejected of %d\n", loaded, rejected, kFiles + kManifests);
+  EXPECT_EQ(loaded + rejected, kFiles + kManifests);
+  EXPECT_GT(rejected, kFiles / 2);  // most damage to the fields is caught
+  EXPECT_GT(loaded, 0);             // and descriptor bits are just data
+}
+
+// Saving in place over a database, killed (SIGKILL) at random moments: the
+// directory always holds a database that loads, the old one or the new one.
+TEST(DatabaseSaveTest, KilledInPlaceSaveLeavesALoadableDatabase) {
+  if (testing_util::kThreadSanitizer) GTEST_SKIP() << "forks: not under ThreadSanitizer";
+  TempDir tmp;
+  const Database small = MakeDatabase(ExtractorOptions(), 2, false);
+  const Database large = MakeDatabase(ExtractorOptions(), 6, true);
+  small.Save(tmp.Path());
+  std::mt19937 rng(7);
+  int survived = 0;
+  for (int trial = 0; trial < 30; ++trial) {
+    const pid_t child = ::fork();
+    ASSERT_GE(child, 0);
+    if (child == 0) {
+      for (int n = 0;; ++n) (n % 2 ? small : large).Save(tmp.Path());  // until killed
+    }
+    std::this_thread::sleep_for(std::chrono::microseconds(500 + rng() % 20000));
+    ::kill(child, SIGKILL);
+    int status = 0;
+    ::waitpid(child, &status, 0);
+    const Database db = Database::Load(tmp.Path());
+    EXPECT_TRUE(db.size() == 2 || db.size() == 6) << db.size();
+    ExpectDatabasesEqual(db.size() == 2 ? small : large, db);
+    ++survived;
+  }
+  EXPECT_EQ(survived, 30);
+  // No stale generation is left once a save completes.
+  small.Save(tmp.Path());
+  int keyframe_files = 0;
+  for (const auto& e : fs::directory_iterator(tmp.Path())) {
+    keyframe_files += Database::IsKeyframesFileName(e.path().filename().string());
+  }
+  EXPECT_EQ(keyframe_files, 1);
+}
+
+// A reader never pairs one generation's manifest with another's keyframe
+// file, while a writer keeps replacing the database in place: every load
+// sees the keyframes the manifest it read describes.
+TEST(DatabaseSaveTest, ReadersSeeOneGenerationWhileAWriterSaves) {
+  TempDir tmp;
+  Database a = MakeDatabase(ExtractorOptions(), 3, false);
+  Database b = MakeDatabase(ExtractorOptions(), 3, true);  // same counts, other content
+  a.info()["generation"] = "a";
+  b.info()["generation"] = "b";
+  a.Save(tmp.Path());
+  std::atomic<bool> stop{false};
+  std::thread writer([&] {
+    for (int n = 0; !stop; ++n) (n % 2 ? a : b).Save(tmp.Path());
+  });
+  int loads = 0, mixed = 0;
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(2);
+  while (std::chrono::steady_clock::now() < until) {
+    const Database db = Database::Load(tmp.Path());
+    const bool with_poses = db.keyframe(0).pose.has_value();
+    mixed += with_poses != (db.info()["generation"] == "b");
+    ++loads;
+  }
+  stop = true;
+  writer.join();
+  std::printf("%d loads during in-place saves, %d mixed\n", loads, mixed);
+  EXPECT_GT(loads, 50);
+  EXPECT_EQ(mixed, 0);
 }
 
 TEST(DatabaseTest, AddingSurfFeaturesToOrbDatabaseThrows) {

@@ -220,6 +220,7 @@ QueryResult QueryDatabase(const Database& db, const FeatureSet& query, const Que
                           const QueryContext& context) {
   PLACEDB_CHECK_OPTIONS(options);
   ValidateQueryFeatures(query, db);
+  PLACEDB_CHECK(db.has_features(), "the database was opened as a keyframe table, without features");
   Timer total;
   QueryResult result;
   result.num_query_features = static_cast<int>(query.size());
@@ -251,8 +252,9 @@ QueryResult QueryDatabase(const Database& db, const FeatureSet& query, const Que
   // Match: contiguous chunks of the candidates, each keeping its best; the
   // merged best do not depend on the chunking.
   stage.Restart();
-  std::vector<int8_t> laplacian;
-  const DescriptorBlock block = MakeDescriptorBlock(query, &laplacian);
+  // SURF: the query's rows grouped by Laplacian sign, like the database's.
+  const GroupedFeatures grouped = GroupByLaplacian(query);
+  const DescriptorBlock& block = grouped.block;
   const size_t keep = KeptAfterMatching(options);
   const bool need_matches = options.verify.enabled;
   const size_t n = candidates.size();
@@ -307,12 +309,12 @@ QueryResult QueryDatabase(const Database& db, const FeatureSet& query, const Que
                            : (fs::path(context.image_dir) / k.image_file).string();
     }
     if (!options.verify.enabled) return;
-    const std::vector<cv::KeyPoint> keypoints = db.Keypoints(e.index);
+    const Span<cv::KeyPoint> keypoints = db.Keypoints(e.index);
     std::vector<cv::Point2f> q, t;
     q.reserve(e.matches.size());
     t.reserve(e.matches.size());
     for (const cv::DMatch& m : e.matches) {
-      q.push_back(query.keypoints[m.queryIdx].pt);
+      q.push_back(grouped.set.keypoints[m.queryIdx].pt);
       t.push_back(k.ToOriginal(keypoints[m.trainIdx].pt));
     }
     r.num_inliers = VerifyMatches(q, t, options.verify).num_inliers;

@@ -38,6 +38,32 @@ DescriptorBlock MakeDescriptorBlock(const FeatureSet& set, std::vector<int8_t>* 
   return block;
 }
 
+GroupedFeatures GroupByLaplacian(const FeatureSet& set) {
+  GroupedFeatures g;
+  if (set.type != FeatureType::kSurf || set.empty()) {
+    g.set = set;
+    g.block = MakeDescriptorBlock(g.set, nullptr);
+    if (set.type == FeatureType::kSurf) g.block.positive_rows = 0;
+    return g;
+  }
+  PLACEDB_CHECK(set.descriptors.rows == static_cast<int>(set.keypoints.size()),
+                "one descriptor per keypoint expected");
+  std::vector<int> order(set.keypoints.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
+  const auto mid = std::stable_partition(order.begin(), order.end(),
+                                         [&](int r) { return set.keypoints[r].class_id >= 0; });
+  g.set.type = set.type;
+  g.set.keypoints.reserve(order.size());
+  g.set.descriptors.create(set.descriptors.rows, set.descriptors.cols, set.descriptors.type());
+  for (size_t i = 0; i < order.size(); ++i) {
+    g.set.keypoints.push_back(set.keypoints[order[i]]);
+    set.descriptors.row(order[i]).copyTo(g.set.descriptors.row(static_cast<int>(i)));
+  }
+  g.block = MakeDescriptorBlock(g.set, nullptr);
+  g.block.positive_rows = static_cast<int>(mid - order.begin());
+  return g;
+}
+
 namespace {
 
 // The distance of one descriptor family: ORB's Hamming counts or SURF's
@@ -61,22 +87,42 @@ struct OrbMetric {
   float Reported(uint32_t d) const { return static_cast<float>(d); }
 };
 
+// The sign of row `i`'s Laplacian, 0 when the block does not know it.
+int8_t RowSign(const DescriptorBlock& b, int i) {
+  if (b.laplacian != nullptr) return b.laplacian[i];
+  if (b.positive_rows >= 0) return i < b.positive_rows ? 1 : -1;
+  return 0;
+}
+
 struct SurfMetric {
   using Distance = float;
   float limit;
   double ratio2;  // squared distances are compared
-  bool signs;
-  SurfMetric(const MatchOptions& o, bool both_have_signs)
+  bool use_signs;
+  explicit SurfMetric(const MatchOptions& o)
       : limit(o.max_l2 > 0 ? static_cast<float>(o.max_l2 * o.max_l2)
                            : std::numeric_limits<float>::infinity()),
         ratio2(o.ratio * o.ratio),
-        signs(o.use_laplacian_sign && both_have_signs) {}
+        use_signs(o.use_laplacian_sign) {}
+  // The two nearest rows of `in` to row `row` of `from` among the rows of
+  // the same Laplacian sign: a range of grouped rows, or a per-row filter.
   TwoNearestOf<float> Nearest(const DescriptorBlock& from, int row,
                               const DescriptorBlock& in) const {
     const int dims = in.row_bytes / static_cast<int>(sizeof(float));
-    return TwoNearestL2(reinterpret_cast<const float*>(from.Row(row)),
-                        reinterpret_cast<const float*>(in.data), in.rows, dims,
-                        signs ? in.laplacian : nullptr, signs ? from.laplacian[row] : int8_t{0});
+    const auto* q = reinterpret_cast<const float*>(from.Row(row));
+    const auto* d = reinterpret_cast<const float*>(in.data);
+    const int8_t sign = use_signs ? RowSign(from, row) : int8_t{0};
+    if (sign != 0 && in.positive_rows >= 0) {
+      const int begin = sign > 0 ? 0 : in.positive_rows;
+      const int end = sign > 0 ? in.positive_rows : in.rows;
+      TwoNearestOf<float> nn =
+          TwoNearestL2(q, d + static_cast<size_t>(begin) * dims, end - begin, dims, nullptr, 0);
+      if (nn.best_index >= 0) nn.best_index += begin;
+      return nn;
+    }
+    const bool filter = sign != 0 && in.laplacian != nullptr;
+    return TwoNearestL2(q, d, in.rows, dims, filter ? in.laplacian : nullptr,
+                        filter ? sign : int8_t{0});
   }
   bool Passes(const TwoNearestOf<float>& nn) const {
     return nn.best_index >= 0 && nn.best <= limit &&
@@ -142,8 +188,7 @@ int MatchDescriptors(const DescriptorBlock& query, const DescriptorBlock& db,
   }
   if (query.type == FeatureType::kOrb)
     return Match(query, db, OrbMetric(options), options, matches);
-  const bool signs = query.laplacian != nullptr && db.laplacian != nullptr;
-  return Match(query, db, SurfMetric(options, signs), options, matches);
+  return Match(query, db, SurfMetric(options), options, matches);
 }
 
 }  // namespace placedb

@@ -29,8 +29,12 @@ struct DescriptorBlock {
   const uint8_t* data = nullptr;  // rows * row_bytes bytes
   int rows = 0;
   int row_bytes = 0;  // ORB: 32; SURF: 4 * (64 or 128)
-  // SURF only, optional: sign of the Laplacian per row (+1/-1). Descriptors
-  // of opposite signs are never matched (a blob on dark vs light background).
+  // SURF only, optional: the sign of the Laplacian of each row, either
+  // grouped (the first positive_rows rows +1, the rest -1: a database's rows,
+  // scanned by sign without a test per row) or per row (laplacian, +1/-1).
+  // Descriptors of opposite signs are never matched (a blob on a dark vs a
+  // light background). Neither set: signs unknown, not used.
+  int positive_rows = -1;
   const int8_t* laplacian = nullptr;
 
   const uint8_t* Row(int i) const { return data + static_cast<size_t>(i) * row_bytes; }
@@ -39,6 +43,15 @@ struct DescriptorBlock {
 // A view of a FeatureSet (valid while the set lives). `laplacian` receives
 // the keypoints' Laplacian signs for SURF.
 DescriptorBlock MakeDescriptorBlock(const FeatureSet& set, std::vector<int8_t>* laplacian);
+
+// SURF: the set reordered (stably) so that keypoints with a positive
+// Laplacian (class_id >= 0) come first, and a view of it with positive_rows
+// set. Other types: the set as it is, a plain view.
+struct GroupedFeatures {
+  FeatureSet set;
+  DescriptorBlock block;
+};
+GroupedFeatures GroupByLaplacian(const FeatureSet& set);
 
 struct MatchOptions {
   // Lowe's ratio: nearest distance < ratio x second-nearest. Range (0, 1].

@@ -1,9 +1,10 @@
 // File helpers: whole-file reads, crash-safe writes (temporary file, fsync,
-// rename), checksums, and little-endian binary encoding of flat arrays.
+// rename), directories read as one, and little-endian binary encoding.
 #pragma once
 
 #include <cstdint>
 #include <cstring>
+#include <memory>
 #include <string>
 #include <type_traits>
 #include <vector>
@@ -23,8 +24,58 @@ void WriteFileAtomic(const std::string& path, const std::string& data);
 // fsyncs a directory so that renames inside it are durable.
 void SyncDirectory(const std::string& dir);
 
-// CRC-32 (zlib's polynomial) of a byte range.
-uint32_t Crc32(const void* data, size_t size, uint32_t crc = 0);
+// A file written through a buffer into "<path>.tmp.<pid>" and moved to
+// `path` by Commit (fsync, rename, fsync of the directory): a crash leaves
+// the old file or the new one, never a torn one. Destroyed uncommitted, it
+// removes the temporary file. Not thread-safe.
+class AtomicFileWriter {
+ public:
+  explicit AtomicFileWriter(std::string path);
+  ~AtomicFileWriter();
+  AtomicFileWriter(const AtomicFileWriter&) = delete;
+  AtomicFileWriter& operator=(const AtomicFileWriter&) = delete;
+
+  void Write(const void* data, size_t size);
+  // Zeros up to a multiple of `alignment` bytes.
+  void Align(size_t alignment);
+  // Overwrites bytes already written (a header filled in last).
+  void WriteAt(uint64_t offset, const void* data, size_t size);
+  uint64_t position() const { return position_; }
+  void Commit();
+
+ private:
+  void Flush();
+
+  std::string path_, tmp_;
+  int fd_ = -1;
+  std::string buffer_;
+  uint64_t position_ = 0;
+  bool committed_ = false;
+};
+
+class MappedFile;
+
+// A directory opened once: files read relative to it come from the same
+// directory even if its path is renamed or replaced meanwhile.
+class DirectoryHandle {
+ public:
+  // Throws std::runtime_error when `path` is not a readable directory.
+  explicit DirectoryHandle(const std::string& path);
+  ~DirectoryHandle();
+  DirectoryHandle(const DirectoryHandle&) = delete;
+  DirectoryHandle& operator=(const DirectoryHandle&) = delete;
+
+  const std::string& path() const { return path_; }
+  // The whole file `name`, or false when it does not exist (other errors
+  // throw). At most `max_bytes` are accepted.
+  bool ReadFile(const std::string& name, std::string* out, size_t max_bytes) const;
+  // The file `name` mapped read-only, or nullptr when it does not exist.
+  std::shared_ptr<const MappedFile> MapFile(const std::string& name) const;
+
+ private:
+  std::string path_;
+  int fd_ = -1;
+};
 
 // Size of a file in bytes, 0 if it does not exist.
 uint64_t FileSize(const std::string& path);

@@ -13,6 +13,9 @@ class MappedFile {
   // Maps `path` read-only. Throws std::runtime_error naming the path when it
   // cannot be opened or mapped. An empty file gives an empty mapping.
   static std::shared_ptr<const MappedFile> Open(const std::string& path);
+  // Maps the open file `fd` (which the caller keeps and closes); `what` names
+  // it in errors.
+  static std::shared_ptr<const MappedFile> FromFd(int fd, const std::string& what);
 
   ~MappedFile();
   MappedFile(const MappedFile&) = delete;

@@ -52,6 +52,21 @@ class TempDir {
   static inline int counter_ = 0;  // several directories in one test
 };
 
+// True in a ThreadSanitizer build, where a test that forks a multi-threaded
+// process cannot run (TSan does not support threads after such a fork).
+constexpr bool kThreadSanitizer =
+#if defined(__SANITIZE_THREAD__)
+    true;
+#elif defined(__has_feature)
+#if __has_feature(thread_sanitizer)
+    true;
+#else
+    false;
+#endif
+#else
+    false;
+#endif
+
 // Runs `fn`; succeeds when it throws `Exception` whose what() contains every
 // one of `parts`.
 template <typename Exception, typename Fn>
@@ -73,9 +88,10 @@ template <typename Exception, typename Fn>
   return ::testing::AssertionFailure() << "nothing thrown";
 }
 
-// Every field of two keypoint lists is equal (determinism, round trips).
-inline void ExpectSameKeypoints(const std::vector<cv::KeyPoint>& a,
-                                const std::vector<cv::KeyPoint>& b) {
+// Every field of two keypoint lists is equal (determinism, round trips);
+// any containers of cv::KeyPoint with size() and operator[].
+template <typename A, typename B>
+void ExpectSameKeypoints(const A& a, const B& b) {
   ASSERT_EQ(a.size(), b.size());
   for (size_t i = 0; i < a.size(); ++i) {
     EXPECT_EQ(a[i].pt, b[i].pt) << "keypoint " << i;

@@ -1,0 +1,65 @@
+// The keyframe file, format version 2: what a database keeps of its
+// keyframes, in flat little-endian sections that are used in place from a
+// memory map.
+//
+//   header (64 bytes)
+//     char[8] magic "PLDBKF\r\n" (the CR LF catches text-mode mangling)
+//     u32 format version (2)       u32 header bytes (64)
+//     u32 feature type (1 ORB, 2 SURF)   u32 descriptor bytes per row
+//     u32 number of sections S (4..16)   u32 reserved (0)
+//     u64 keyframes K   u64 features F   u64 file bytes
+//     u64 checksum: XXH3-64 of header bytes [0, 56) followed by the section table
+//   section table: S entries of 32 bytes
+//     u32 kind   u32 reserved (0)   u64 offset   u64 bytes   u64 XXH3-64 of the section
+//   sections, each at a multiple of 64 bytes, in any order, not overlapping:
+//     1 keyframes    K records of 152 bytes (see kKeyframe* offsets)
+//     2 strings      the keyframes' source paths and image names
+//     3 keypoints    F records of 28 bytes, the layout of cv::KeyPoint
+//                    (x, y, size, angle, response: f32; octave, class_id: i32)
+//     4 descriptors  F rows of descriptor bytes each
+//   Unknown section kinds are skipped (their checksums are not verified).
+//
+// Keyframe i owns features [feature_offset, feature_offset + feature_count),
+// the keyframes' ranges back to back in keyframe order. SURF rows of a
+// keyframe are grouped by the sign of the Laplacian: the first
+// positive_count have class_id >= 0, the rest class_id < 0.
+//
+// The header checksum covers the section table, which holds every section's
+// checksum: the manifest records it (and the file's name and size), which
+// binds the manifest to this one file.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+namespace placedb {
+namespace keyframe_file {
+
+constexpr char kMagic[8] = {'P', 'L', 'D', 'B', 'K', 'F', '\r', '\n'};
+constexpr uint32_t kVersion = 2;
+constexpr size_t kHeaderBytes = 64;
+constexpr size_t kChecksumOffset = 56;
+constexpr size_t kSectionEntryBytes = 32;
+constexpr uint32_t kMinSections = 4;
+constexpr uint32_t kMaxSections = 16;
+constexpr size_t kSectionAlignment = 64;
+constexpr size_t kKeyframeRecordBytes = 152;
+constexpr size_t kKeypointRecordBytes = 28;
+
+enum SectionKind : uint32_t {
+  kKeyframes = 1,
+  kStrings = 2,
+  kKeypoints = 3,
+  kDescriptors = 4,
+};
+
+// Recomputes the checksums of a keyframe file image, as far as its section
+// table can be read: every readable section's checksum, then the header
+// checksum; with `fix_size`, the header's file bytes too. For tests that
+// mutate a valid file so that the parser itself, not the checksums, must
+// catch the damage. Returns the header checksum (0 if the header is short).
+uint64_t Reseal(std::string* bytes, bool fix_size);
+
+}  // namespace keyframe_file
+}  // namespace placedb
