@@ -1,5 +1,8 @@
 // SURF (ours) vs OpenCV SIFT and ORB: detect + describe time on one thread.
 //   surf_bench [--benchmark_filter=...]
+// BM_Surf* use the SIMD level chosen at run time from the CPU (printed in the
+// context as surf_simd); BM_SurfPlain is BM_Surf forced onto the plain
+// (baseline) copy of the hot loops, so one run shows what the dispatch buys.
 // Images: a 640x480 TUM frame and graf1 (800x640), read from PLACEDB_DATA_DIR.
 #include <benchmark/benchmark.h>
 
@@ -10,6 +13,7 @@
 #include <string>
 
 #include "placedb/feature/surf/surf.h"
+#include "placedb/feature/surf/surf_simd.h"
 
 namespace {
 
@@ -45,6 +49,13 @@ void BM_Surf(benchmark::State& state) {
   Run(state, surf);
 }
 
+void BM_SurfPlain(benchmark::State& state) {
+  const bool was = placedb::surf_internal::SetSurfSimdForTesting(false);
+  placedb::SurfFeature2D surf;
+  Run(state, surf);
+  placedb::surf_internal::SetSurfSimdForTesting(was);
+}
+
 void BM_SurfUpright(benchmark::State& state) {
   placedb::SurfOptions options;
   options.upright = true;
@@ -74,6 +85,7 @@ void BM_Orb(benchmark::State& state) {
 }
 
 BENCHMARK(BM_Surf)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_SurfPlain)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_SurfUpright)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_SurfDetectOnly)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Sift)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
@@ -81,4 +93,12 @@ BENCHMARK(BM_Orb)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 
-BENCHMARK_MAIN();
+int main(int argc, char** argv) {
+  benchmark::AddCustomContext("surf_simd", placedb::surf_internal::SurfSimdName(
+                                               placedb::surf_internal::SurfSimdSupported()));
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}

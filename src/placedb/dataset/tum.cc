@@ -33,8 +33,8 @@ size_t NearestPose(const std::vector<TumPoseStamped>& poses, double t) {
 }  // namespace
 
 std::string TumOptions::Check() const {
-  if (!(max_time_difference >= 0.0) || !std::isfinite(max_time_difference)) {
-    return "max_time_difference must be a finite number >= 0 seconds, got " +
+  if (!(max_time_difference >= 0.0 && max_time_difference <= 3600.0)) {
+    return "max_time_difference must be in [0, 3600] seconds, got " +
            std::to_string(max_time_difference);
   }
   if (rgb_list.empty()) return "rgb_list must not be empty";

@@ -5,13 +5,13 @@
 #include <algorithm>
 
 #include "placedb/util/check.h"
+#include "placedb/util/options.h"
 
 namespace placedb {
 
 std::string PoseThresholds::Check() const {
-  if (!(max_distance_m > 0)) return "max_distance_m must be > 0";
-  if (!(max_angle_deg > 0 && max_angle_deg <= 180)) return "max_angle_deg must be in (0, 180]";
-  return "";
+  return FirstReason({CheckRange("max_distance_m", max_distance_m, 0.0, 1e6, /*lo_open=*/true),
+                      CheckRange("max_angle_deg", max_angle_deg, 0.0, 180.0, /*lo_open=*/true)});
 }
 
 GroundTruth GroundTruth::FromMatchList(MatchTruth truth) {

@@ -4,7 +4,12 @@
 #include <cmath>
 #include <cstdint>
 
+#include "placedb/feature/surf/surf_simd.h"
 #include "placedb/util/check.h"
+
+#if defined(PLACEDB_SURF_X86)
+#include <immintrin.h>
+#endif
 
 namespace placedb {
 namespace surf_internal {
@@ -24,13 +29,12 @@ struct RowPointers {
 // Determinants of n consecutive cells of one grid row; cell i reads the
 // integral image at column offset i * step from the pointers.
 // kStep > 0 fixes the step at compile time (lets the compiler vectorise the
-// contiguous case); kStep == 0 uses `step`.
+// contiguous case); kStep == 0 uses `step`. Compiled twice (HessianRowPlain,
+// HessianRowAvx2; see surf_simd.h).
 template <int kStep>
-#if defined(__GNUC__) && defined(__x86_64__) && !defined(__clang__)
-__attribute__((target_clones("avx2", "default")))
-#endif
-void HessianRow(const RowPointers& p, int w, int len, int dxy_gap, int n, int step,
-                float inv_xx, float inv_xy, float* __restrict out) {
+PLACEDB_SURF_INLINE void HessianRowBody(const RowPointers& p, int w, int len, int dxy_gap, int n,
+                                        int step, float inv_xx, float inv_xy,
+                                        float* __restrict out) {
   const uint32_t* __restrict xx0 = p.xx[0];
   const uint32_t* __restrict xx1 = p.xx[1];
   const uint32_t* __restrict yy0 = p.yy[0];
@@ -72,6 +76,75 @@ void HessianRow(const RowPointers& p, int w, int len, int dxy_gap, int n, int st
   }
 }
 
+template <int kStep>
+void HessianRowPlain(const RowPointers& p, int w, int len, int dxy_gap, int n, int step,
+                     float inv_xx, float inv_xy, float* __restrict out) {
+  HessianRowBody<kStep>(p, w, len, dxy_gap, n, step, inv_xx, inv_xy, out);
+}
+
+#if defined(PLACEDB_SURF_X86)
+template <int kStep>
+PLACEDB_SURF_AVX2 void HessianRowAvx2(const RowPointers& p, int w, int len, int dxy_gap, int n,
+                                      int step, float inv_xx, float inv_xy, float* __restrict out) {
+  HessianRowBody<kStep>(p, w, len, dxy_gap, n, step, inv_xx, inv_xy, out);
+}
+#endif
+
+template <int kStep>
+void HessianRow(SurfSimd simd, const RowPointers& p, int w, int len, int dxy_gap, int n, int step,
+                float inv_xx, float inv_xy, float* out) {
+#if defined(PLACEDB_SURF_X86)
+  if (simd == SurfSimd::kAvx2) {
+    HessianRowAvx2<kStep>(p, w, len, dxy_gap, n, step, inv_xx, inv_xy, out);
+    return;
+  }
+#endif
+  HessianRowPlain<kStep>(p, w, len, dxy_gap, n, step, inv_xx, inv_xy, out);
+}
+
+// Candidates for a maximum in one grid row of a layer: writes the columns c
+// in [begin, end) with d[c] > thr, d[c] > d[c - 1] and d[c] > d[c + 1] (the
+// cheap part of the 3x3x3 test, done for whole rows) in increasing order and
+// returns their number. d[begin - 1] and d[end] must be readable.
+PLACEDB_SURF_INLINE int RowCandidatesPlain(const float* d, int begin, int end, float thr,
+                                           int* out) {
+  int n = 0;
+  for (int c = begin; c < end; ++c) {
+    const float v = d[c];
+    out[n] = c;
+    n += (v > thr) & (v > d[c - 1]) & (v > d[c + 1]);
+  }
+  return n;
+}
+
+#if defined(PLACEDB_SURF_X86)
+PLACEDB_SURF_AVX2 int RowCandidatesAvx2(const float* d, int begin, int end, float thr, int* out) {
+  const __m256 t = _mm256_set1_ps(thr);
+  int n = 0;
+  int c = begin;
+  for (; c + 8 <= end; c += 8) {
+    const __m256 v = _mm256_loadu_ps(d + c);
+    const __m256 above = _mm256_cmp_ps(v, t, _CMP_GT_OQ);
+    const __m256 left = _mm256_cmp_ps(v, _mm256_loadu_ps(d + c - 1), _CMP_GT_OQ);
+    const __m256 right = _mm256_cmp_ps(v, _mm256_loadu_ps(d + c + 1), _CMP_GT_OQ);
+    unsigned mask =
+        static_cast<unsigned>(_mm256_movemask_ps(_mm256_and_ps(above, _mm256_and_ps(left, right))));
+    while (mask != 0) {
+      out[n++] = c + __builtin_ctz(mask);
+      mask &= mask - 1;
+    }
+  }
+  return n + RowCandidatesPlain(d, c, end, thr, out + n);
+}
+#endif
+
+int RowCandidates(SurfSimd simd, const float* d, int begin, int end, float thr, int* out) {
+#if defined(PLACEDB_SURF_X86)
+  if (simd == SurfSimd::kAvx2) return RowCandidatesAvx2(d, begin, end, thr, out);
+#endif
+  return RowCandidatesPlain(d, begin, end, thr, out);
+}
+
 // One layer of determinants on an octave's sampling grid.
 struct Layer {
   HessianFilter filter;
@@ -91,7 +164,8 @@ void ValidRange(int extent, int size, int step, int* lo, int* hi) {
   if (*hi < *lo) *hi = *lo;
 }
 
-void ComputeLayer(const IntegralImage& ii, const Layer& layer, int grid_cols, float* det) {
+void ComputeLayer(SurfSimd simd, const IntegralImage& ii, const Layer& layer, int grid_cols,
+                  float* det) {
   const HessianFilter& f = layer.filter;
   const int step = layer.step;
   const int half = f.size / 2;
@@ -112,11 +186,11 @@ void ComputeLayer(const IntegralImage& ii, const Layer& layer, int grid_cols, fl
     float* out = det + static_cast<size_t>(r) * grid_cols + layer.c_lo;
     const int gap = f.dxy_hi - f.dxy_lo;
     if (step == 1) {
-      HessianRow<1>(p, w, f.lobe_len, gap, n, 1, f.inv_area_xx, f.inv_area_xy, out);
+      HessianRow<1>(simd, p, w, f.lobe_len, gap, n, 1, f.inv_area_xx, f.inv_area_xy, out);
     } else if (step == 2) {
-      HessianRow<2>(p, w, f.lobe_len, gap, n, 2, f.inv_area_xx, f.inv_area_xy, out);
+      HessianRow<2>(simd, p, w, f.lobe_len, gap, n, 2, f.inv_area_xx, f.inv_area_xy, out);
     } else {
-      HessianRow<0>(p, w, f.lobe_len, gap, n, step, f.inv_area_xx, f.inv_area_xy, out);
+      HessianRow<0>(simd, p, w, f.lobe_len, gap, n, step, f.inv_area_xx, f.inv_area_xy, out);
     }
   }
 }
@@ -188,6 +262,8 @@ void DetectFastHessian(const IntegralImage& ii, double threshold, int num_octave
   if (rows <= 0 || cols <= 0) return;
   const int num_layers = num_octave_layers + 2;
   const float thr = static_cast<float>(threshold);
+  const SurfSimd simd = SurfSimdActive();
+  std::vector<int> candidates(static_cast<size_t>(cols) + 8);
   std::vector<std::vector<float>> buffers(num_layers);
   std::vector<Layer> layers;
   layers.reserve(num_layers);
@@ -209,7 +285,7 @@ void DetectFastHessian(const IntegralImage& ii, double threshold, int num_octave
     if (top_layer.r_hi - top_layer.r_lo < 3 || top_layer.c_hi - top_layer.c_lo < 3) break;
     for (int l = 0; l < num_layers; ++l) {
       buffers[l].resize(static_cast<size_t>(grid_rows) * grid_cols);
-      ComputeLayer(ii, layers[l], grid_cols, buffers[l].data());
+      ComputeLayer(simd, ii, layers[l], grid_cols, buffers[l].data());
       layers[l].det = buffers[l].data();
     }
 
@@ -225,10 +301,12 @@ void DetectFastHessian(const IntegralImage& ii, double threshold, int num_octave
       const float shift = 0.5f * static_cast<float>(f.size - 1) - static_cast<float>(half);
       for (int r = above.r_lo + 1; r < above.r_hi - 1; ++r) {
         const size_t row = static_cast<size_t>(r) * grid_cols;
-        for (int c = above.c_lo + 1; c < above.c_hi - 1; ++c) {
+        const int num_candidates =
+            RowCandidates(simd, d1 + row, above.c_lo + 1, above.c_hi - 1, thr, candidates.data());
+        for (int ci = 0; ci < num_candidates; ++ci) {
+          const int c = candidates[ci];
           const size_t idx = row + c;
           const float v = d1[idx];
-          if (!(v > thr)) continue;
           // 3x3x3 neighbourhood, strict maximum.
           bool is_max = true;
           for (int dr = -1; dr <= 1 && is_max; ++dr) {

@@ -13,13 +13,8 @@ namespace surf_internal {
 // Scale s of a keypoint of the given size (size 9 <-> s = 1.2).
 inline float ScaleOfSize(float size) { return 1.2f * size / 9.0f; }
 
-// The sub-pixel Haar responses use an AVX2+FMA kernel when the CPU has it
-// (chosen once at run time) and a plain loop otherwise; they agree up to
-// float rounding. For tests: disables/enables the SIMD kernel, returns the
-// previous setting. Process-wide.
-bool SetSimdEnabled(bool enabled);
-// "avx2+fma" or "plain": the kernel used when SIMD is enabled.
-const char* HaarKernelName();
+// Both functions use the AVX2+FMA copy of their loops when the CPU has it
+// and the plain copy otherwise, with bit-identical results (surf_simd.h).
 
 // Dominant orientation in degrees in [0, 360) (image axes, y down): Haar
 // responses of side 4s at the sample points (i s, j s), i^2 + j^2 < 36,
