@@ -38,7 +38,8 @@ test-asan: deps
 test-tsan: deps
 	cmake --preset tsan
 	cmake --build build-tsan -j$(JOBS) --target $(TSAN_TARGETS)
-	cd build-tsan && TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1 \
+	cd build-tsan && OPENCV_FOR_THREADS_NUM=1 \
+	  TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1:suppressions=$(CURDIR)/cmake/tsan.supp \
 	  ctest --output-on-failure -j$(JOBS) -L threads
 
 demo: build

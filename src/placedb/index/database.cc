@@ -45,8 +45,6 @@ void SetField(char* base, size_t offset, T value) {
   std::memcpy(base + offset, &value, sizeof(T));
 }
 
-size_t AlignUp(size_t n, size_t alignment) { return (n + alignment - 1) / alignment * alignment; }
-
 bool Finite(double v) { return std::isfinite(v); }
 
 // Offsets inside a 152-byte keyframe record.
@@ -78,8 +76,14 @@ std::string CheckKeyframe(const Keyframe& k) {
   }
   if (k.crop.x < 0 || k.crop.y < 0 || k.crop.width < 0 || k.crop.height < 0)
     return "the crop rectangle is negative";
-  if (k.original_size.area() > 0 && (int64_t{k.crop.x} + k.crop.width > k.original_size.width ||
-                                     int64_t{k.crop.y} + k.crop.height > k.original_size.height)) {
+  constexpr int kMaxSide = 1 << 20;
+  if (k.original_size.width > kMaxSide || k.original_size.height > kMaxSide ||
+      k.stored_size.width > kMaxSide || k.stored_size.height > kMaxSide) {
+    return "an image side is larger than 2^20 pixels";
+  }
+  if (k.original_size.width > 0 && k.original_size.height > 0 &&
+      (int64_t{k.crop.x} + k.crop.width > k.original_size.width ||
+       int64_t{k.crop.y} + k.crop.height > k.original_size.height)) {
     return "the crop rectangle leaves the original image";
   }
   if (!(k.scale > 0.0 && k.scale <= 64.0)) return "scale is not in (0, 64]";

@@ -57,8 +57,8 @@ struct Keyframe {
 };
 
 // Why a keyframe record is impossible, or "" when it is fine: an id below 1, a
-// crop channel outside [-1, 2], a negative size or crop, a crop outside a
-// known original size, a scale that is not finite and in (0, 64], a timestamp
+// crop channel outside [-1, 2], a negative size or crop, an image side above
+// 2^20 pixels, a crop outside a known original size, a scale that is not finite and in (0, 64], a timestamp
 // that is not finite, a pose with non-finite values or a quaternion that is
 // not of unit length, paths longer than 64 KiB.
 std::string CheckKeyframe(const Keyframe& keyframe);

@@ -1,22 +1,40 @@
 #include "placedb/match/hamming.h"
 
-#include <cstring>
-
 #if defined(__x86_64__) || defined(__i386__)
+// GCC 12's AVX-512 headers trip -Wuninitialized on their own
+// _mm512_undefined_epi32() (GCC bug 105593); the warnings point into the
+// header, so they are silenced for it alone.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wuninitialized"
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #include <immintrin.h>
+#pragma GCC diagnostic pop
 #define PLACEDB_X86 1
 #endif
+
+#include <spdlog/spdlog.h>
+
+#include <cstdlib>
+#include <cstring>
 
 namespace placedb {
 namespace {
 
+// Built at compile time, so it is usable from other translation units'
+// static initialisers too.
 struct ByteTable {
-  uint8_t bits[256];
-  ByteTable() {
-    for (int i = 0; i < 256; ++i) bits[i] = static_cast<uint8_t>(__builtin_popcount(i) & 0xff);
+  uint8_t bits[256] = {};
+  constexpr ByteTable() {
+    for (int i = 0; i < 256; ++i) {
+      int n = 0;
+      for (int v = i; v != 0; v >>= 1) n += v & 1;
+      bits[i] = static_cast<uint8_t>(n);
+    }
   }
 };
-const ByteTable kTable;
+constexpr ByteTable kTable;
+
+using Kernel = HammingKernel;
 
 #if PLACEDB_X86
 __attribute__((target("popcnt"))) uint32_t HammingPopcnt(const uint8_t* a, const uint8_t* b,
@@ -118,20 +136,235 @@ __attribute__((target("avx2,popcnt"))) TwoNearest TwoNearestAvx2(const uint8_t* 
   }
   return out;
 }
-#endif
 
-using Kernel = HammingKernel;
+// ---------------------------------------------------------------------------
+// AVX-512 VPOPCNTDQ: 32 rows of 32 bytes per step, 16 zmm loads of two rows
+// each, reduced to 32 distances in 16-bit lanes, where the per-lane best,
+// second and row of the best are kept (16 bits: distances are <= 256, and
+// rows are counted within chunks of 65536).
+// Only ever called after HammingKernelAvailable(kAvx512) said yes.
+#define PLACEDB_TARGET_AVX512 __attribute__((target("avx512f,avx512bw,avx512vl,avx512vpopcntdq")))
+#define PLACEDB_INLINE_AVX512 PLACEDB_TARGET_AVX512 __attribute__((always_inline)) inline
 
-Kernel DetectKernel() {
-#if PLACEDB_X86
-  __builtin_cpu_init();
-  if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("popcnt")) return Kernel::kAvx2;
-  if (__builtin_cpu_supports("popcnt")) return Kernel::kPopcnt;
-#endif
-  return Kernel::kReference;
+// Row (within a step of 32) whose distance each 16-bit lane of
+// Distances32() holds.
+alignas(64) constexpr uint16_t kRowOfLane[32] = {0,  2,  16, 18, 4,  6,  20, 22, 8,  10, 24,
+                                                 26, 12, 14, 28, 30, 1,  3,  17, 19, 5,  7,
+                                                 21, 23, 9,  11, 25, 27, 13, 15, 29, 31};
+
+// Rows per call of TwoNearestAvx512Chunk: row indices fit in 16 bits.
+constexpr int kAvx512ChunkRows = 65536;
+
+#define PLACEDB_SHUFPS(a, b, imm) \
+  _mm512_castps_si512(_mm512_shuffle_ps(_mm512_castsi512_ps(a), _mm512_castsi512_ps(b), (imm)))
+
+// The distances of rows p[0..32) to the query `q2` (the 32-byte query in both
+// halves of a zmm), in the lane order of kRowOfLane. With kMasked only the
+// first `rest` rows are read (masked loads touch no other memory; the
+// missing rows read as zeros and must be discarded by the caller).
+template <bool kMasked>
+PLACEDB_INLINE_AVX512 __m512i Distances32(__m512i q2, const uint8_t* p, int rest) {
+  // c[k]: popcounts of the 64-bit words of rows 2k (words 0-3) and 2k+1
+  // (words 4-7), each < 2^7 in the low half of its 64-bit lane.
+  __m512i c[16];
+  for (int k = 0; k < 16; ++k) {
+    __m512i rows;
+    if (kMasked) {
+      int words = 4 * rest - 8 * k;  // 64-bit words of this load that exist
+      words = words < 0 ? 0 : (words > 8 ? 8 : words);
+      rows = _mm512_maskz_loadu_epi64(static_cast<__mmask8>((1u << words) - 1), p + 64 * k);
+    } else {
+      rows = _mm512_loadu_si512(p + 64 * k);
+    }
+    c[k] = _mm512_popcnt_epi64(_mm512_xor_si512(q2, rows));
+  }
+  // Pack: 32-bit lanes (c[2i] even, c[2i+1] odd), then 16-bit lanes (rows
+  // 0-15 and 16-31 side by side in each 128-bit lane).
+  __m512i w[4];
+  for (int i = 0; i < 4; ++i) {
+    const __m512i lo = _mm512_mask_shuffle_epi32(c[2 * i], 0xAAAA, c[2 * i + 1], _MM_PERM_CDAB);
+    const __m512i hi =
+        _mm512_mask_shuffle_epi32(c[8 + 2 * i], 0xAAAA, c[8 + 2 * i + 1], _MM_PERM_CDAB);
+    w[i] = _mm512_packus_epi32(lo, hi);
+  }
+  // Add the two 64-bit words of each 128-bit half row (adjacent 32-bit
+  // lanes), then the two half rows (in neighbouring 128-bit lanes).
+  const __m512i n0 =
+      _mm512_add_epi16(PLACEDB_SHUFPS(w[0], w[1], 0x88), PLACEDB_SHUFPS(w[0], w[1], 0xDD));
+  const __m512i n1 =
+      _mm512_add_epi16(PLACEDB_SHUFPS(w[2], w[3], 0x88), PLACEDB_SHUFPS(w[2], w[3], 0xDD));
+  const __m512i cross = _mm512_setr_epi64(2, 3, 8, 9, 6, 7, 12, 13);
+  return _mm512_add_epi16(_mm512_mask_blend_epi64(0xCC, n0, n1),
+                          _mm512_permutex2var_epi64(n0, cross, n1));
+}
+#undef PLACEDB_SHUFPS
+
+// (smallest, second smallest) per 16-bit lane: folds the pair (b1, b2) into
+// (m1, m2) (each pair with x1 <= x2): (min of all four, second of all four).
+PLACEDB_INLINE_AVX512 void FoldTwo(__m256i& m1, __m256i& m2, __m256i b1, __m256i b2) {
+  m2 = _mm256_min_epu16(_mm256_max_epu16(m1, b1), _mm256_min_epu16(m2, b2));
+  m1 = _mm256_min_epu16(m1, b1);
+}
+PLACEDB_INLINE_AVX512 void FoldTwo(__m128i& m1, __m128i& m2, __m128i b1, __m128i b2) {
+  m2 = _mm_min_epu16(_mm_max_epu16(m1, b1), _mm_min_epu16(m2, b2));
+  m1 = _mm_min_epu16(m1, b1);
 }
 
-const Kernel kKernel = DetectKernel();
+// Per 16-bit lane: best, second and the first row of the step that gave the
+// best (the lane's row is that + kRowOfLane[lane], < 2^16 within a chunk),
+// among the rows that lane saw; they arrive in increasing index order, so
+// strict < keeps the lower index.
+struct Lanes {
+  __m512i best, second, best_base;
+};
+
+PLACEDB_INLINE_AVX512 void Track(Lanes& s, __m512i d, int base) {
+  const __mmask32 lt = _mm512_cmplt_epu16_mask(d, s.best);
+  s.second = _mm512_min_epu16(s.second, _mm512_max_epu16(s.best, d));
+  s.best = _mm512_min_epu16(s.best, d);
+  s.best_base = _mm512_mask_mov_epi16(s.best_base, lt, _mm512_set1_epi16(static_cast<short>(base)));
+}
+
+// At most kAvx512ChunkRows rows (count >= 1).
+PLACEDB_TARGET_AVX512 TwoNearest TwoNearestAvx512Chunk(__m512i q2, const uint8_t* db, int count) {
+  const __m512i none = _mm512_set1_epi16(-1);  // 0xffff: no candidate
+  const __m512i row_of_lane = _mm512_load_si512(kRowOfLane);
+  Lanes lanes{none, none, none};
+
+  if (count < 32) {
+    // Masked loads; the lanes of missing rows are set to 0xffff (never
+    // < best, and max(best, d) = d leaves second as it is).
+    const __m512i d = Distances32<true>(q2, db, count);
+    const __mmask32 valid =
+        _mm512_cmplt_epu16_mask(row_of_lane, _mm512_set1_epi16(static_cast<short>(count)));
+    Track(lanes, _mm512_mask_mov_epi16(none, valid, d), 0);
+  } else {
+    int j = 0;
+    for (; j + 32 <= count; j += 32) {
+      Track(lanes, Distances32<false>(q2, db + static_cast<size_t>(j) * 32, 0), j);
+    }
+    if (j < count) {
+      // 1..31 rows left: the last 32 rows again, keeping only the lanes of
+      // rows >= j (those rows come after every row the lane saw).
+      const int base = count - 32;
+      const __m512i d = Distances32<false>(q2, db + static_cast<size_t>(base) * 32, 0);
+      const __mmask32 fresh =
+          _mm512_cmpge_epu16_mask(row_of_lane, _mm512_set1_epi16(static_cast<short>(j - base)));
+      Track(lanes, _mm512_mask_mov_epi16(none, fresh, d), base);
+    }
+  }
+  // Across lanes, folding 512 -> 256 -> 128 bits, then within 128 bits.
+  // The best, and the lowest row among the lanes that have it: the minimum
+  // of (best << 16 | row) over the lanes, in 32 bits.
+  const __m512i best = lanes.best, second = lanes.second;
+  const __m512i row = _mm512_add_epi16(lanes.best_base, row_of_lane);
+  const __m512i key512 =
+      _mm512_min_epu32(_mm512_unpacklo_epi16(row, best), _mm512_unpackhi_epi16(row, best));
+  const __m256i key256 =
+      _mm256_min_epu32(_mm512_castsi512_si256(key512), _mm512_extracti64x4_epi64(key512, 1));
+  __m128i key = _mm_min_epu32(_mm256_castsi256_si128(key256), _mm256_extracti128_si256(key256, 1));
+  key = _mm_min_epu32(key, _mm_shuffle_epi32(key, _MM_SHUFFLE(1, 0, 3, 2)));
+  key = _mm_min_epu32(key, _mm_shuffle_epi32(key, _MM_SHUFFLE(2, 3, 0, 1)));
+  // The second: the second smallest of all lanes' best and second values
+  // (= min(second of the winning lane, best of every other lane)), folding
+  // (smallest, second smallest) pairs; independent of the key.
+  __m256i a1 = _mm512_castsi512_si256(best), a2 = _mm512_castsi512_si256(second);
+  FoldTwo(a1, a2, _mm512_extracti64x4_epi64(best, 1), _mm512_extracti64x4_epi64(second, 1));
+  __m128i m1 = _mm256_castsi256_si128(a1), m2 = _mm256_castsi256_si128(a2);
+  FoldTwo(m1, m2, _mm256_extracti128_si256(a1, 1), _mm256_extracti128_si256(a2, 1));
+  FoldTwo(m1, m2, _mm_shuffle_epi32(m1, _MM_SHUFFLE(1, 0, 3, 2)),
+          _mm_shuffle_epi32(m2, _MM_SHUFFLE(1, 0, 3, 2)));
+  FoldTwo(m1, m2, _mm_shuffle_epi32(m1, _MM_SHUFFLE(2, 3, 0, 1)),
+          _mm_shuffle_epi32(m2, _MM_SHUFFLE(2, 3, 0, 1)));
+  FoldTwo(m1, m2, _mm_rol_epi32(m1, 16), _mm_rol_epi32(m2, 16));
+  const uint32_t k = static_cast<uint32_t>(_mm_cvtsi128_si32(key));
+  const uint32_t s = static_cast<uint32_t>(_mm_cvtsi128_si32(m2)) & 0xffff;
+  TwoNearest out;
+  out.best = k >> 16;  // count >= 1, so some lane has a candidate
+  out.second = s == 0xffff ? UINT32_MAX : s;
+  out.best_index = static_cast<int>(k & 0xffff);
+  return out;
+}
+
+PLACEDB_TARGET_AVX512 TwoNearest TwoNearestAvx512(const uint8_t* query, const uint8_t* db,
+                                                  int count, int bytes) {
+  if (bytes != 32) return TwoNearestPopcnt(query, db, count, bytes);
+  TwoNearest out;
+  if (count <= 0) return out;
+  const __m512i q2 =
+      _mm512_broadcast_i64x4(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(query)));
+  if (count <= kAvx512ChunkRows) return TwoNearestAvx512Chunk(q2, db, count);
+  // Chunks in index order: a later chunk wins only when strictly better.
+  for (int start = 0; start < count; start += kAvx512ChunkRows) {
+    const int n = count - start < kAvx512ChunkRows ? count - start : kAvx512ChunkRows;
+    const TwoNearest c = TwoNearestAvx512Chunk(q2, db + static_cast<size_t>(start) * 32, n);
+    if (c.best < out.best) {
+      out.second = out.best < c.second ? out.best : c.second;
+      out.best = c.best;
+      out.best_index = start + c.best_index;
+    } else if (c.best < out.second) {
+      out.second = c.best;
+    }
+  }
+  return out;
+}
+#undef PLACEDB_INLINE_AVX512
+#undef PLACEDB_TARGET_AVX512
+#endif  // PLACEDB_X86
+
+bool CpuRuns(Kernel kernel) {
+#if PLACEDB_X86
+  __builtin_cpu_init();
+  switch (kernel) {
+    case Kernel::kReference:
+      return true;
+    case Kernel::kPopcnt:
+      return __builtin_cpu_supports("popcnt");
+    case Kernel::kAvx2:
+      return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("popcnt");
+    case Kernel::kAvx512:
+      // __builtin_cpu_supports also checks that the OS saves the zmm state.
+      return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") &&
+             __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512vpopcntdq") &&
+             __builtin_cpu_supports("popcnt");
+  }
+  return false;
+#else
+  return kernel == Kernel::kReference;
+#endif
+}
+
+// What the CPU runs, computed once.
+struct Support {
+  bool runs[kNumHammingKernels];
+  Kernel best = Kernel::kReference;
+  Support() {
+    for (int k = 0; k < kNumHammingKernels; ++k) {
+      runs[k] = CpuRuns(static_cast<Kernel>(k));
+      if (runs[k]) best = static_cast<Kernel>(k);  // kernels are listed slowest first
+    }
+  }
+};
+
+const Support& GetSupport() {
+  static const Support support;
+  return support;
+}
+
+TwoNearest Run(Kernel kernel, const uint8_t* query, const uint8_t* db, int count, int bytes) {
+  switch (kernel) {
+#if PLACEDB_X86
+    case Kernel::kAvx512:
+      return TwoNearestAvx512(query, db, count, bytes);
+    case Kernel::kAvx2:
+      return TwoNearestAvx2(query, db, count, bytes);
+    case Kernel::kPopcnt:
+      return TwoNearestPopcnt(query, db, count, bytes);
+#endif
+    default:
+      return TwoNearestHammingReference(query, db, count, bytes);
+  }
+}
 
 }  // namespace
 
@@ -143,7 +376,7 @@ uint32_t HammingReference(const uint8_t* a, const uint8_t* b, int bytes) {
 
 uint32_t Hamming(const uint8_t* a, const uint8_t* b, int bytes) {
 #if PLACEDB_X86
-  if (kKernel != Kernel::kReference) return HammingPopcnt(a, b, bytes);
+  if (ActiveHammingKernel() != Kernel::kReference) return HammingPopcnt(a, b, bytes);
 #endif
   return HammingReference(a, b, bytes);
 }
@@ -158,45 +391,68 @@ TwoNearest TwoNearestHammingReference(const uint8_t* query, const uint8_t* db, i
 }
 
 TwoNearest TwoNearestHamming(const uint8_t* query, const uint8_t* db, int count, int bytes) {
-#if PLACEDB_X86
-  if (kKernel == Kernel::kAvx2) return TwoNearestAvx2(query, db, count, bytes);
-  if (kKernel == Kernel::kPopcnt) return TwoNearestPopcnt(query, db, count, bytes);
-#endif
-  return TwoNearestHammingReference(query, db, count, bytes);
+  return Run(ActiveHammingKernel(), query, db, count, bytes);
 }
 
 bool HammingKernelAvailable(HammingKernel kernel) {
-  switch (kernel) {
-    case Kernel::kReference:
-      return true;
-    case Kernel::kPopcnt:
-      return kKernel == Kernel::kPopcnt || kKernel == Kernel::kAvx2;
-    case Kernel::kAvx2:
-      return kKernel == Kernel::kAvx2;
-  }
-  return false;
+  const int k = static_cast<int>(kernel);
+  return k >= 0 && k < kNumHammingKernels && GetSupport().runs[k];
 }
 
 TwoNearest TwoNearestHammingWith(HammingKernel kernel, const uint8_t* query, const uint8_t* db,
                                  int count, int bytes) {
   if (!HammingKernelAvailable(kernel)) kernel = Kernel::kReference;
-#if PLACEDB_X86
-  if (kernel == Kernel::kAvx2) return TwoNearestAvx2(query, db, count, bytes);
-  if (kernel == Kernel::kPopcnt) return TwoNearestPopcnt(query, db, count, bytes);
-#endif
-  return TwoNearestHammingReference(query, db, count, bytes);
+  return Run(kernel, query, db, count, bytes);
 }
 
-const char* HammingKernelName() {
-  switch (kKernel) {
-    case Kernel::kAvx2:
-      return "avx2";
-    case Kernel::kPopcnt:
-      return "popcnt";
+HammingKernel BestHammingKernel() { return GetSupport().best; }
+
+HammingKernel ChooseHammingKernel(const char* requested) {
+  const Kernel best = BestHammingKernel();
+  if (requested == nullptr || requested[0] == '\0') return best;
+  const std::optional<Kernel> kernel = HammingKernelFromName(requested);
+  if (!kernel) {
+    spdlog::warn(
+        "PLACEDB_HAMMING_KERNEL={}: unknown kernel (reference|popcnt|avx2|avx512); using {}",
+        requested, HammingKernelName(best));
+    return best;
+  }
+  if (!HammingKernelAvailable(*kernel)) {
+    spdlog::warn("PLACEDB_HAMMING_KERNEL={}: this CPU cannot run it; using {}", requested,
+                 HammingKernelName(best));
+    return best;
+  }
+  return *kernel;
+}
+
+HammingKernel ActiveHammingKernel() {
+  static const Kernel kernel = ChooseHammingKernel(std::getenv("PLACEDB_HAMMING_KERNEL"));
+  return kernel;
+}
+
+const char* HammingKernelName(HammingKernel kernel) {
+  switch (kernel) {
     case Kernel::kReference:
       return "reference";
+    case Kernel::kPopcnt:
+      return "popcnt";
+    case Kernel::kAvx2:
+      return "avx2";
+    case Kernel::kAvx512:
+      return "avx512";
   }
-  return "reference";
+  return "unknown";
 }
+
+std::optional<HammingKernel> HammingKernelFromName(const char* name) {
+  if (name == nullptr) return std::nullopt;
+  for (int k = 0; k < kNumHammingKernels; ++k) {
+    const Kernel kernel = static_cast<Kernel>(k);
+    if (std::strcmp(name, HammingKernelName(kernel)) == 0) return kernel;
+  }
+  return std::nullopt;
+}
+
+const char* HammingKernelName() { return HammingKernelName(ActiveHammingKernel()); }
 
 }  // namespace placedb

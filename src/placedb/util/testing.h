@@ -11,6 +11,7 @@
 #include <fstream>
 #include <initializer_list>
 #include <opencv2/core.hpp>
+#include <opencv2/core/utility.hpp>
 #include <string>
 #include <utility>
 #include <vector>
@@ -66,6 +67,15 @@ constexpr bool kThreadSanitizer =
 #else
     false;
 #endif
+
+// Under ThreadSanitizer, OpenCV runs its functions sequentially: its TBB
+// worker threads are not instrumented, so TSan cannot see their
+// synchronisation and would report races inside OpenCV. placedb's own
+// threads are still checked. (Every test binary includes this header.)
+inline const bool kOpenCvSequentialUnderTsan = [] {
+  if (kThreadSanitizer) cv::setNumThreads(0);
+  return true;
+}();
 
 // Runs `fn`; succeeds when it throws `Exception` whose what() contains every
 // one of `parts`.
