@@ -81,5 +81,26 @@ TEST(MatchTruthTest, MalformedLinesNameFileAndLine) {
                                                 {"none.csv"}));
 }
 
+// A binary file given as ground truth: one clear line, never its raw bytes.
+TEST(MatchTruthTest, BinaryFilesGiveAPrintableError) {
+  testing_util::TempDir tmp;
+  const std::string png = tmp.Write("truth.png", std::string("\x89PNG\r\n\x1a\n\0\0\0\rIHDR", 16));
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ReadMatchTruth(png); },
+                                                {"not a text file", "NUL bytes"}));
+  const std::string junk = tmp.Write("junk.csv", "1,2\n\x1b[31m\xff\xfe,3\n");
+  try {
+    ReadMatchTruth(junk);
+    ADD_FAILURE() << "no error";
+  } catch (const std::invalid_argument& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find(junk + ":2:"), std::string::npos) << message;
+    EXPECT_NE(message.find("\\x1b"), std::string::npos) << message;
+    for (const char c : message) {
+      EXPECT_TRUE(c >= 0x20 && c < 0x7f)
+          << "raw byte " << static_cast<int>(static_cast<unsigned char>(c));
+    }
+  }
+}
+
 }  // namespace
 }  // namespace placedb

@@ -221,9 +221,20 @@ TEST_F(CliTest, ArgumentErrorsAreOneLineAndExitOne) {
         std::string("build --images ") + kImages + " --out " + Path("x") + " --crop-sigma nan",
         std::string("build --images ") + kImages + " --out " + Path("x") +
             " --orb-edge-threshold 2147483647",
+        std::string("build --images ") + kImages + " --out " + Path("x") +
+            " --crop-padding 2147483647",
+        std::string("build --images ") + kImages + " --out " + Path("x") + " --crop-sigma 1e6",
+        std::string("build --images ") + kImages + " --out " + Path("x") +
+            " --orb-max-features 2000000000",
+        std::string("build --images ") + kImages + " --out " + Path("x") +
+            " --orb-levels 2147483647",
+        std::string("build --images ") + kImages + " --out " + Path("x") +
+            " --orb-patch-size 2147483647",
+        std::string("build --images ") + kImages + " --out " + Path("x") + " --threads 2147483648",
         std::string("build --images ") + kImages + " --out " + Path("x") + " --frame-size 160",
         std::string("build --images ") + kImages + " --out " + Path("x") + " --no-such-flag",
-        std::string("build --out ") + Path("x"), "query --db " + db + image + " --top-k 0",
+        std::string("build --out ") + Path("x"),
+        "query --db " + db + image + " --top-k 0",
         "query --db " + db + image + " --ratio 2",
         "query --db " + db + image + " --verify-model affine",
         "query --db " + db + image + " --threads -2",
@@ -276,6 +287,22 @@ TEST_F(CliTest, PartitionsAndKeyframeLists) {
     EXPECT_EQ(r.code, 1) << bad << "\n" << r.output;
     EXPECT_TRUE(Contains(r.output, "placedb: error:")) << bad << "\n" << r.output;
   }
+}
+
+// Ground truth naming ids that no frame of the data can have is probably the
+// wrong file: eval says so (and still runs).
+TEST_F(CliTest, GroundTruthBeyondTheDataIsWarnedAbout) {
+  const std::string db = Path("db");
+  ASSERT_EQ(Placedb("build --images " + kImages + " --last 10 --out " + db + " --quiet").code, 0);
+  std::ofstream(Path("truth.csv")) << "41,1 2 3\n42,5000\n9999,1\n";
+  const CommandResult r =
+      Placedb("eval --db " + db + " --images " + kImages + " --first 41 --last 42 --truth " +
+              Path("truth.csv") + " --all --quiet");
+  EXPECT_EQ(r.code, 0) << r.output;
+  EXPECT_TRUE(Contains(r.output, "the ground truth names 2 ids beyond the data")) << r.output;
+  const CommandResult fine = Placedb("eval --db " + db + " --images " + kImages +
+                                     " --first 41 --truth " + kTruth + " --all --quiet");
+  EXPECT_FALSE(Contains(fine.output, "beyond the data")) << fine.output;
 }
 
 // A smaller camera, simulated: frames resized as they are read.
