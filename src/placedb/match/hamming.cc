@@ -1,5 +1,7 @@
 #include "placedb/match/hamming.h"
 
+#include "placedb/match/kernel_choice.h"
+
 #if defined(__x86_64__) || defined(__i386__)
 // GCC 12's AVX-512 headers trip -Wuninitialized on their own
 // _mm512_undefined_epi32() (GCC bug 105593); the warnings point into the
@@ -408,21 +410,9 @@ TwoNearest TwoNearestHammingWith(HammingKernel kernel, const uint8_t* query, con
 HammingKernel BestHammingKernel() { return GetSupport().best; }
 
 HammingKernel ChooseHammingKernel(const char* requested) {
-  const Kernel best = BestHammingKernel();
-  if (requested == nullptr || requested[0] == '\0') return best;
-  const std::optional<Kernel> kernel = HammingKernelFromName(requested);
-  if (!kernel) {
-    spdlog::warn(
-        "PLACEDB_HAMMING_KERNEL={}: unknown kernel (reference|popcnt|avx2|avx512); using {}",
-        requested, HammingKernelName(best));
-    return best;
-  }
-  if (!HammingKernelAvailable(*kernel)) {
-    spdlog::warn("PLACEDB_HAMMING_KERNEL={}: this CPU cannot run it; using {}", requested,
-                 HammingKernelName(best));
-    return best;
-  }
-  return *kernel;
+  const char* (*name)(HammingKernel) = HammingKernelName;
+  return internal::ChooseKernel(requested, "PLACEDB_HAMMING_KERNEL", kNumHammingKernels,
+                                BestHammingKernel(), name, HammingKernelAvailable);
 }
 
 HammingKernel ActiveHammingKernel() {
@@ -445,12 +435,8 @@ const char* HammingKernelName(HammingKernel kernel) {
 }
 
 std::optional<HammingKernel> HammingKernelFromName(const char* name) {
-  if (name == nullptr) return std::nullopt;
-  for (int k = 0; k < kNumHammingKernels; ++k) {
-    const Kernel kernel = static_cast<Kernel>(k);
-    if (std::strcmp(name, HammingKernelName(kernel)) == 0) return kernel;
-  }
-  return std::nullopt;
+  const char* (*kernel_name)(HammingKernel) = HammingKernelName;
+  return internal::KernelFromName(name, kNumHammingKernels, kernel_name);
 }
 
 const char* HammingKernelName() { return HammingKernelName(ActiveHammingKernel()); }

@@ -1,5 +1,7 @@
 #include "placedb/match/l2_distance.h"
 
+#include "placedb/match/kernel_choice.h"
+
 #if defined(__x86_64__) || defined(__i386__)
 // GCC 12's AVX-512 headers trip -Wuninitialized on their own
 // _mm512_undefined_*() (GCC bug 105593); the warnings point into the
@@ -452,20 +454,9 @@ TwoNearestL2Result TwoNearestL2With(L2Kernel kernel, const float* query, const f
 L2Kernel BestL2Kernel() { return GetSupport().best; }
 
 L2Kernel ChooseL2Kernel(const char* requested) {
-  const Kernel best = BestL2Kernel();
-  if (requested == nullptr || requested[0] == '\0') return best;
-  const std::optional<Kernel> kernel = L2KernelFromName(requested);
-  if (!kernel) {
-    spdlog::warn("PLACEDB_L2_KERNEL={}: unknown kernel (reference|sse2|avx2|avx512); using {}",
-                 requested, L2KernelName(best));
-    return best;
-  }
-  if (!L2KernelAvailable(*kernel)) {
-    spdlog::warn("PLACEDB_L2_KERNEL={}: this CPU cannot run it; using {}", requested,
-                 L2KernelName(best));
-    return best;
-  }
-  return *kernel;
+  const char* (*name)(L2Kernel) = L2KernelName;
+  return internal::ChooseKernel(requested, "PLACEDB_L2_KERNEL", kNumL2Kernels, BestL2Kernel(), name,
+                                L2KernelAvailable);
 }
 
 L2Kernel ActiveL2Kernel() {
@@ -488,12 +479,8 @@ const char* L2KernelName(L2Kernel kernel) {
 }
 
 std::optional<L2Kernel> L2KernelFromName(const char* name) {
-  if (name == nullptr) return std::nullopt;
-  for (int k = 0; k < kNumL2Kernels; ++k) {
-    const Kernel kernel = static_cast<Kernel>(k);
-    if (std::strcmp(name, L2KernelName(kernel)) == 0) return kernel;
-  }
-  return std::nullopt;
+  const char* (*kernel_name)(L2Kernel) = L2KernelName;
+  return internal::KernelFromName(name, kNumL2Kernels, kernel_name);
 }
 
 const char* L2KernelName() { return L2KernelName(ActiveL2Kernel()); }
