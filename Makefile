@@ -8,7 +8,7 @@ BUILD_DIR ?= build
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release
 # The tests a ThreadSanitizer pass runs (CTest label "threads").
-TSAN_TARGETS = util_test surf_test index_test eval_test
+TSAN_TARGETS = util_test surf_test index_test eval_test distributed_test
 
 .PHONY: all deps configure build test test-release test-asan test-tsan demo bench clean
 
