@@ -15,11 +15,21 @@ PACKAGES=(
   libgtest-dev libgmock-dev
   libbenchmark-dev       # Google Benchmark
   python3                # demo and benchmark tables
+  # ROS 1 (Debian's packages): the nodes, messages, bags, roslaunch. Not
+  # needed with -DPLACEDB_WITH_ROS=OFF (PLACEDB_WITH_ROS=OFF ./install_deps.sh).
+  ros:libroscpp-dev ros:libstd-msgs-dev ros:libsensor-msgs-dev ros:libgeometry-msgs-dev
+  ros:libtf2-msgs-dev ros:libimage-transport-dev ros:libcv-bridge-dev ros:librosbag-storage-dev
+  ros:ros-std-msgs ros:ros-geometry-msgs ros:python3-genmsg ros:python3-gencpp
+  ros:python3-rosmaster ros:rosout ros:catkin ros:python3-roslaunch
 )
 
 missing=()
 for pkg in "${PACKAGES[@]}"; do
   [[ "$pkg" == \#* ]] && continue
+  if [[ "$pkg" == ros:* ]]; then
+    [[ "${PLACEDB_WITH_ROS:-ON}" == OFF ]] && continue
+    pkg=${pkg#ros:}
+  fi
   if ! dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q "install ok installed"; then
     missing+=("$pkg")
   fi

@@ -6,7 +6,7 @@
 namespace placedb {
 
 cv::Mat LoadFrameImage(const Frame& frame) {
-  cv::Mat image = cv::imread(frame.image_path, cv::IMREAD_COLOR);
+  cv::Mat image = frame.load ? frame.load() : cv::imread(frame.image_path, cv::IMREAD_COLOR);
   if (image.empty() || frame.resize_to.empty() || image.size() == frame.resize_to) return image;
   const bool down = frame.resize_to.area() < image.size().area();
   cv::Mat resized;

@@ -2,6 +2,7 @@
 // ground-truth pose. Produced by the dataset readers, consumed by build/query.
 #pragma once
 
+#include <functional>
 #include <opencv2/core.hpp>
 #include <optional>
 #include <string>
@@ -12,9 +13,13 @@
 namespace placedb {
 
 struct Frame {
-  int id = 0;                // 1-based position in the source listing (folder, list file, rgb.txt)
-  double timestamp = -1.0;   // seconds; -1 when unknown
-  std::string image_path;    // absolute or as given, usable with cv::imread
+  int id = 0;               // 1-based position in the source listing (folder, list file, rgb.txt)
+  double timestamp = -1.0;  // seconds; -1 when unknown
+  std::string image_path;   // absolute or as given, usable with cv::imread; or a
+                            // description of where `load` reads from
+  // When set, reads the image instead of cv::imread(image_path): frames from
+  // a bag. Must be callable from several threads at once.
+  std::function<cv::Mat()> load;
   std::optional<Pose> pose;  // ground-truth camera pose (camera-to-world), when known
   // When not empty, the image is brought to this size as it is read: a
   // smaller camera, simulated (area interpolation down, bilinear up).

@@ -32,6 +32,24 @@ size_t NearestPose(const std::vector<TumPoseStamped>& poses, double t) {
 
 }  // namespace
 
+size_t AssignNearestPoses(std::vector<Frame>* frames, std::vector<TumPoseStamped> poses,
+                          double max_time_difference) {
+  if (poses.empty()) return frames->size();
+  std::stable_sort(
+      poses.begin(), poses.end(),
+      [](const TumPoseStamped& a, const TumPoseStamped& b) { return a.timestamp < b.timestamp; });
+  size_t poseless = 0;
+  for (Frame& frame : *frames) {
+    const TumPoseStamped& nearest = poses[NearestPose(poses, frame.timestamp)];
+    if (std::abs(nearest.timestamp - frame.timestamp) <= max_time_difference) {
+      frame.pose = nearest.pose;
+    } else {
+      ++poseless;
+    }
+  }
+  return poseless;
+}
+
 std::string TumOptions::Check() const {
   if (!(max_time_difference >= 0.0 && max_time_difference <= 3600.0)) {
     return "max_time_difference must be in [0, 3600] seconds, got " +
@@ -111,18 +129,8 @@ std::vector<Frame> ReadTumSequence(const std::string& dir, const TumOptions& opt
                  frames.size());
     return frames;
   }
-  std::stable_sort(
-      poses.begin(), poses.end(),
-      [](const TumPoseStamped& a, const TumPoseStamped& b) { return a.timestamp < b.timestamp; });
-  size_t poseless = 0;
-  for (Frame& frame : frames) {
-    const TumPoseStamped& nearest = poses[NearestPose(poses, frame.timestamp)];
-    if (std::abs(nearest.timestamp - frame.timestamp) <= options.max_time_difference) {
-      frame.pose = nearest.pose;
-    } else {
-      ++poseless;
-    }
-  }
+  const size_t poseless =
+      AssignNearestPoses(&frames, std::move(poses), options.max_time_difference);
   if (poseless > 0) {
     spdlog::warn("{}: {} of {} frames have no ground-truth pose within {} s; kept pose-less", dir,
                  poseless, frames.size(), options.max_time_difference);

@@ -37,6 +37,12 @@ struct TumPoseStamped {
 // std::invalid_argument; unreadable → std::runtime_error.
 std::vector<TumPoseStamped> ReadTumTrajectory(const std::string& path);
 
+// Gives each frame the pose of `poses` nearest to its timestamp (ties: the
+// earlier pose) when within `max_time_difference` seconds; returns how many
+// frames got none.
+size_t AssignNearestPoses(std::vector<Frame>* frames, std::vector<TumPoseStamped> poses,
+                          double max_time_difference);
+
 // Frames of a TUM RGB-D folder: id = 1-based position among the frames listed
 // in rgb.txt (file order), timestamp from rgb.txt, image_path = dir/relative
 // path. Each frame gets the ground-truth pose nearest in time (ties: the

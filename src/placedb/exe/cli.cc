@@ -7,6 +7,9 @@
 #include <iostream>
 
 #include "placedb/dataset/image_folder.h"
+#ifdef PLACEDB_WITH_ROS
+#include "placedb/ros/bag_source.h"
+#endif
 #include "placedb/util/check.h"
 #include "placedb/util/file_io.h"
 
@@ -20,6 +23,13 @@ void SourceArgs::Add(CLI::App* cmd, const std::string& what) {
   auto* tum_opt =
       cmd->add_option("--tum", tum, what + ": a TUM RGB-D folder (rgb.txt, groundtruth.txt)");
   images_opt->excludes(tum_opt);
+  auto* bag_opt = cmd->add_option(
+      "--bag", bag, what + ": a ROS bag (needs a build with ROS); the images on --topic");
+  bag_opt->excludes(images_opt)->excludes(tum_opt);
+  cmd->add_option("--topic", topic, "bag: the image topic (sensor_msgs/Image or CompressedImage)");
+  cmd->add_option("--bag-groundtruth", bag_groundtruth, "bag: poses from this TUM trajectory file");
+  cmd->add_option("--bag-tf", bag_tf,
+                  "bag: poses from /tf, the transform PARENT,CHILD (e.g. world,kinect)");
   cmd->add_option("--first", first, "first image id to use (1-based position in the listing)")
       ->capture_default_str();
   cmd->add_option("--last", last, "last image id to use (0: to the end)")->capture_default_str();
@@ -51,8 +61,35 @@ std::vector<Frame> SourceArgs::Read() const {
       PLACEDB_THROW_INVALID("--first/--last select no TUM frame (", frames.size(), " listed)");
     frames = std::vector<Frame>(frames.begin() + static_cast<ptrdiff_t>(begin),
                                 frames.begin() + static_cast<ptrdiff_t>(end));
+  } else if (!bag.empty()) {
+#ifdef PLACEDB_WITH_ROS
+    if (first < 1) PLACEDB_THROW_INVALID("--first must be >= 1, got ", first);
+    if (last < 0) PLACEDB_THROW_INVALID("--last must be >= 0 (0: to the end), got ", last);
+    BagSourceOptions o;
+    o.bag = bag;
+    o.topic = topic;
+    o.groundtruth = bag_groundtruth;
+    o.max_time_difference = tum_options.max_time_difference;
+    if (!bag_tf.empty()) {
+      const size_t comma = bag_tf.find(',');
+      if (comma == std::string::npos) PLACEDB_THROW_INVALID("--bag-tf takes PARENT,CHILD");
+      o.tf_parent = bag_tf.substr(0, comma);
+      o.tf_child = bag_tf.substr(comma + 1);
+    }
+    frames = ReadBagFrames(o);
+    const size_t begin = static_cast<size_t>(first - 1);
+    const size_t end =
+        last == 0 ? frames.size() : std::min(frames.size(), static_cast<size_t>(last));
+    if (begin >= frames.size() || begin >= end)
+      PLACEDB_THROW_INVALID("--first/--last select no bag frame (", frames.size(), " in the bag)");
+    frames = std::vector<Frame>(frames.begin() + static_cast<ptrdiff_t>(begin),
+                                frames.begin() + static_cast<ptrdiff_t>(end));
+#else
+    PLACEDB_THROW_INVALID(
+        "this placedb was built without ROS (-DPLACEDB_WITH_ROS=OFF): --bag is not available");
+#endif
   } else {
-    PLACEDB_THROW_INVALID("give --images DIR or --tum DIR");
+    PLACEDB_THROW_INVALID("give --images DIR, --tum DIR or --bag FILE --topic T");
   }
   if (!frame_size.empty()) ResizeFramesTo(&frames, ParseSize(frame_size, "--frame-size"));
   return frames;
@@ -64,7 +101,10 @@ std::string SourceArgs::Describe() const {
     range = last == 0 ? fmt::format(" [{}..]", first) : fmt::format(" [{}..{}]", first, last);
   }
   const std::string size = frame_size.empty() ? "" : " at " + frame_size;
-  return (images.empty() ? "tum:" + tum : "images:" + images) + range + size;
+  const std::string what = !images.empty() ? "images:" + images
+                           : !tum.empty()  ? "tum:" + tum
+                                           : "bag:" + bag + ":" + topic;
+  return what + range + size;
 }
 
 cv::Size ParseSize(const std::string& text, const std::string& flag) {

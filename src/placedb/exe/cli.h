@@ -42,6 +42,8 @@ std::unique_ptr<Command> MakeBenchCommand();
 struct SourceArgs {
   std::string images;
   std::string tum;
+  // A ROS bag: --bag FILE --topic T, poses from --bag-groundtruth or --bag-tf.
+  std::string bag, topic, bag_groundtruth, bag_tf;
   int first = 1;
   int last = 0;
   std::string frame_size;  // "WxH" or ""

@@ -1,0 +1,192 @@
+#include "placedb/ros/messages.h"
+
+#include <cmath>
+#include <cstring>
+
+#include "placedb/util/check.h"
+
+namespace placedb {
+namespace {
+
+[[noreturn]] void Bad(const std::string& cause, const std::string& what) {
+  throw std::invalid_argument(cause + ": " + what);
+}
+
+placedb_msgs::RankedKeyframe RankedToMessage(const RankedKeyframe& k) {
+  placedb_msgs::RankedKeyframe m;
+  m.keyframe_id = k.keyframe_id;
+  m.score = k.score;
+  m.num_matches = k.num_matches;
+  m.num_inliers = k.num_inliers;
+  return m;
+}
+
+}  // namespace
+
+placedb_msgs::Features FeaturesToMessage(const FeatureSet& f, uint64_t frame_seq,
+                                         const std_msgs::Header& header) {
+  placedb_msgs::Features m;
+  m.header = header;
+  m.frame_seq = frame_seq;
+  m.feature_type = FeatureTypeName(f.type);
+  m.descriptor_bytes =
+      static_cast<uint32_t>(f.type == FeatureType::kOrb ? 32 : f.descriptors.cols * 4);
+  if (f.empty() && f.type == FeatureType::kSurf)
+    m.descriptor_bytes = static_cast<uint32_t>(f.descriptors.cols * 4);
+  m.keypoints.reserve(f.keypoints.size() * 7);
+  for (const cv::KeyPoint& k : f.keypoints) {
+    m.keypoints.insert(m.keypoints.end(),
+                       {k.pt.x, k.pt.y, k.size, k.angle, k.response, static_cast<float>(k.octave),
+                        static_cast<float>(k.class_id)});
+  }
+  if (!f.empty()) {
+    PLACEDB_CHECK(f.descriptors.isContinuous(), "descriptors must be contiguous");
+    const auto* data = f.descriptors.ptr<uint8_t>();
+    m.descriptors.assign(data, data + f.descriptors.total() * f.descriptors.elemSize());
+  }
+  return m;
+}
+
+FeatureSet FeaturesFromMessage(const placedb_msgs::Features& m) {
+  FeatureSet f;
+  try {
+    f.type = ParseFeatureType(m.feature_type);
+  } catch (const std::invalid_argument&) {
+    Bad("feature type", "'" + m.feature_type.substr(0, 16) + "' is not orb or surf");
+  }
+  const bool orb = f.type == FeatureType::kOrb;
+  if (orb ? m.descriptor_bytes != 32 : (m.descriptor_bytes != 256 && m.descriptor_bytes != 512))
+    Bad("descriptor width",
+        std::to_string(m.descriptor_bytes) + " bytes do not fit " + m.feature_type);
+  if (m.keypoints.size() % 7 != 0) Bad("keypoints", "not 7 values per keypoint");
+  const size_t rows = m.keypoints.size() / 7;
+  if (rows > 1000000) Bad("keypoints", "more than 1000000");
+  if (m.descriptors.size() != rows * m.descriptor_bytes)
+    Bad("descriptors",
+        std::to_string(m.descriptors.size()) + " bytes for " + std::to_string(rows) + " keypoints");
+  f.keypoints.resize(rows);
+  for (size_t i = 0; i < rows; ++i) {
+    const float* v = &m.keypoints[7 * i];
+    for (int j = 0; j < 7; ++j) {
+      if (!std::isfinite(v[j])) Bad("keypoints", "a value is not finite");
+    }
+    if (v[5] != std::round(v[5]) || std::abs(v[5]) > 1e6 || v[6] != std::round(v[6]) ||
+        std::abs(v[6]) > 1e9) {
+      Bad("keypoints", "octave and class_id must be whole numbers");
+    }
+    f.keypoints[i] =
+        cv::KeyPoint(v[0], v[1], v[2], v[3], v[4], static_cast<int>(v[5]), static_cast<int>(v[6]));
+  }
+  if (orb) {
+    f.descriptors = cv::Mat(static_cast<int>(rows), 32, CV_8U);
+  } else {
+    f.descriptors =
+        cv::Mat(static_cast<int>(rows), static_cast<int>(m.descriptor_bytes / 4), CV_32F);
+  }
+  if (rows > 0) std::memcpy(f.descriptors.data, m.descriptors.data(), m.descriptors.size());
+  if (!orb) {
+    for (size_t i = 0; i < f.descriptors.total(); ++i) {
+      if (!std::isfinite(reinterpret_cast<const float*>(f.descriptors.data)[i]))
+        Bad("descriptors", "a value is not finite");
+    }
+  }
+  return f;
+}
+
+placedb_msgs::PartialResult PartialToMessage(const QueryResult& r, uint64_t frame_seq,
+                                             const std_msgs::Header& header,
+                                             const KeyframeSubset& partition,
+                                             const std::string& database_id) {
+  placedb_msgs::PartialResult m;
+  m.header = header;
+  m.frame_seq = frame_seq;
+  m.database_id = database_id;
+  m.partition = static_cast<uint32_t>(
+      partition.kind == KeyframeSubset::Kind::kPartition ? partition.part : 0);
+  m.num_partitions = static_cast<uint32_t>(
+      partition.kind == KeyframeSubset::Kind::kPartition ? partition.num_parts : 1);
+  m.scheme = PartitionSchemeName(partition.scheme);
+  for (const RankedKeyframe& k : r.ranked) m.ranked.push_back(RankedToMessage(k));
+  m.num_query_features = r.num_query_features;
+  m.num_keyframes = r.num_keyframes;
+  m.num_examined = r.num_examined;
+  m.num_verified = r.num_verified;
+  m.extract_ms = r.times.extract_ms;
+  m.retrieve_ms = r.times.retrieve_ms;
+  m.match_ms = r.times.match_ms;
+  m.verify_ms = r.times.verify_ms;
+  m.total_ms = r.times.total_ms;
+  return m;
+}
+
+QueryResult PartialFromMessage(const placedb_msgs::PartialResult& m) {
+  if (m.num_partitions < 1 || m.num_partitions > 4096 || m.partition >= m.num_partitions)
+    Bad("partition", std::to_string(m.partition) + " of " + std::to_string(m.num_partitions));
+  if (m.scheme != "contiguous" && m.scheme != "interleaved")
+    Bad("scheme", "'" + m.scheme.substr(0, 16) + "'");
+  if (m.ranked.size() > 10000) Bad("ranked", "more than 10000 keyframes");
+  QueryResult r;
+  for (const auto& k : m.ranked) {
+    if (!std::isfinite(k.score) || k.num_matches < 0 || k.num_inliers < -1 ||
+        k.num_inliers > k.num_matches)
+      Bad("ranked keyframe", "impossible counts for keyframe " + std::to_string(k.keyframe_id));
+    const double expected = k.num_inliers >= 0 ? k.num_inliers : k.num_matches;
+    if (k.score != expected) Bad("ranked keyframe", "score disagrees with the counts");
+    RankedKeyframe out;
+    out.keyframe_id = k.keyframe_id;
+    out.score = k.score;
+    out.num_matches = k.num_matches;
+    out.num_inliers = k.num_inliers;
+    r.ranked.push_back(out);
+  }
+  for (const double t : {m.extract_ms, m.retrieve_ms, m.match_ms, m.verify_ms, m.total_ms}) {
+    if (!std::isfinite(t) || t < 0) Bad("times", "not finite and >= 0");
+  }
+  if (m.num_query_features < 0) Bad("counts", "negative query features");
+  r.num_query_features = m.num_query_features;
+  r.num_keyframes = m.num_keyframes;
+  r.num_examined = m.num_examined;
+  r.num_verified = m.num_verified;
+  r.times.extract_ms = m.extract_ms;
+  r.times.retrieve_ms = m.retrieve_ms;
+  r.times.match_ms = m.match_ms;
+  r.times.verify_ms = m.verify_ms;
+  r.times.total_ms = m.total_ms;
+  return r;
+}
+
+placedb_msgs::Answer AnswerToMessage(const FrameAnswer& a, const Database& keyframes,
+                                     const std_msgs::Header& header) {
+  placedb_msgs::Answer m;
+  m.header = header;
+  m.frame_seq = a.frame_seq;
+  m.matched = a.result.matched;
+  m.keyframe_id = -1;
+  if (const RankedKeyframe* best = a.result.best()) {
+    m.keyframe_id = best->keyframe_id;
+    m.score = best->score;
+    m.num_matches = best->num_matches;
+    m.num_inliers = best->num_inliers;
+    const int index = keyframes.IndexOfId(best->keyframe_id);
+    if (index >= 0 && keyframes.keyframe(index).pose) {
+      const Pose& p = *keyframes.keyframe(index).pose;
+      m.has_pose = true;
+      m.pose.position.x = p.translation.x();
+      m.pose.position.y = p.translation.y();
+      m.pose.position.z = p.translation.z();
+      m.pose.orientation.x = p.rotation.x();
+      m.pose.orientation.y = p.rotation.y();
+      m.pose.orientation.z = p.rotation.z();
+      m.pose.orientation.w = p.rotation.w();
+    }
+  }
+  if (!m.has_pose) m.pose.orientation.w = 1.0;
+  for (const RankedKeyframe& k : a.result.ranked) m.ranked.push_back(RankedToMessage(k));
+  for (const int p : a.answered) m.partitions_answered.push_back(static_cast<uint32_t>(p));
+  for (const int p : a.missing) m.partitions_missing.push_back(static_cast<uint32_t>(p));
+  m.complete = a.complete();
+  m.wait_ms = a.waited_ms;
+  return m;
+}
+
+}  // namespace placedb

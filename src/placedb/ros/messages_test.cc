@@ -1,0 +1,132 @@
+// placedb's ROS messages: round trips, and every malformed message a node can
+// receive is a clear std::invalid_argument with its cause, never a bad read.
+#include "placedb/ros/messages.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <opencv2/imgcodecs.hpp>
+
+#include "placedb/feature/extractor.h"
+#include "placedb/ros/image_conversion.h"
+#include "placedb/ros/node_common.h"
+#include "placedb/util/testing.h"
+
+namespace placedb {
+namespace {
+using testing_util::ThrowsWith;
+
+TEST(RosMessagesTest, FeaturesRoundTrip) {
+  const cv::Mat image = cv::imread(testing_util::RtabmapImage(42));
+  ExtractorOptions surf;
+  surf.type = FeatureType::kSurf;
+  surf.surf.max_features = 100;
+  for (const ExtractorOptions& options : {ExtractorOptions(), surf}) {
+    const FeatureSet f = FeatureExtractor::Create(options)->Extract(image);
+    ASSERT_FALSE(f.empty());
+    std_msgs::Header h;
+    h.seq = 17;
+    const placedb_msgs::Features m = FeaturesToMessage(f, 17, h);
+    EXPECT_EQ(m.frame_seq, 17u);
+    const FeatureSet back = FeaturesFromMessage(m);
+    EXPECT_EQ(back.type, f.type);
+    testing_util::ExpectSameKeypoints(back.keypoints, f.keypoints);
+    EXPECT_EQ(cv::norm(back.descriptors, f.descriptors, cv::NORM_INF), 0.0);
+  }
+  // No features at all is fine.
+  FeatureSet empty;
+  empty.descriptors = cv::Mat(0, 32, CV_8U);
+  EXPECT_TRUE(FeaturesFromMessage(FeaturesToMessage(empty, 1, std_msgs::Header())).empty());
+}
+
+TEST(RosMessagesTest, MalformedFeaturesAreRefused) {
+  const FeatureSet f = FeatureExtractor::Create(ExtractorOptions())
+                           ->Extract(cv::imread(testing_util::RtabmapImage(42)));
+  const placedb_msgs::Features good = FeaturesToMessage(f, 1, std_msgs::Header());
+  auto fails = [&](const std::function<void(placedb_msgs::Features&)>& edit,
+                   const std::string& cause) {
+    placedb_msgs::Features m = good;
+    edit(m);
+    return ThrowsWith<std::invalid_argument>([&] { FeaturesFromMessage(m); }, cause);
+  };
+  EXPECT_TRUE(fails([](auto& m) { m.feature_type = "sift"; }, "feature type"));
+  EXPECT_TRUE(fails([](auto& m) { m.descriptor_bytes = 16; }, "descriptor width"));
+  EXPECT_TRUE(fails([](auto& m) { m.keypoints.pop_back(); }, "keypoints"));
+  EXPECT_TRUE(fails([](auto& m) { m.descriptors.pop_back(); }, "descriptors"));
+  EXPECT_TRUE(fails([](auto& m) { m.keypoints[3] = std::nanf(""); }, "keypoints"));
+  EXPECT_TRUE(fails([](auto& m) { m.keypoints[5] = 1.5f; }, "keypoints"));
+  EXPECT_TRUE(fails(
+      [](auto& m) {
+        m.feature_type = "surf";
+        m.descriptor_bytes = 256;
+      },
+      "descriptors"));
+}
+
+TEST(RosMessagesTest, PartialResultsRoundTripAndAreChecked) {
+  QueryResult r;
+  RankedKeyframe k;
+  k.keyframe_id = 4;
+  k.num_matches = 30;
+  k.num_inliers = 25;
+  k.score = 25;
+  r.ranked = {k};
+  r.num_keyframes = 13;
+  r.num_examined = 13;
+  r.num_verified = 1;
+  r.times.match_ms = 1.5;
+  const placedb_msgs::PartialResult m = PartialToMessage(
+      r, 9, std_msgs::Header(), KeyframeSubset::Partition(1, 3), "keyframes.x.bin");
+  EXPECT_EQ(m.partition, 1u);
+  EXPECT_EQ(m.num_partitions, 3u);
+  EXPECT_EQ(m.scheme, "contiguous");
+  const QueryResult back = PartialFromMessage(m);
+  EXPECT_EQ(back.ranked, r.ranked);
+  EXPECT_EQ(back.num_keyframes, 13u);
+  auto fails = [&](const std::function<void(placedb_msgs::PartialResult&)>& edit,
+                   const std::string& cause) {
+    placedb_msgs::PartialResult bad = m;
+    edit(bad);
+    return ThrowsWith<std::invalid_argument>([&] { PartialFromMessage(bad); }, cause);
+  };
+  EXPECT_TRUE(fails([](auto& b) { b.partition = 3; }, "partition"));
+  EXPECT_TRUE(fails([](auto& b) { b.num_partitions = 0; }, "partition"));
+  EXPECT_TRUE(fails([](auto& b) { b.scheme = "random"; }, "scheme"));
+  EXPECT_TRUE(fails([](auto& b) { b.ranked[0].num_inliers = 31; }, "ranked keyframe"));
+  EXPECT_TRUE(fails([](auto& b) { b.ranked[0].score = std::nan(""); }, "ranked keyframe"));
+  EXPECT_TRUE(fails([](auto& b) { b.ranked[0].score = 99; }, "ranked keyframe"));
+  EXPECT_TRUE(fails([](auto& b) { b.match_ms = -1; }, "times"));
+}
+
+TEST(RosMessagesTest, ImagesAreChecked) {
+  const cv::Mat bgr = cv::imread(testing_util::RtabmapImage(1));
+  std_msgs::Header h;
+  const sensor_msgs::Image good = BgrToImageMessage(bgr, h);
+  EXPECT_EQ(cv::norm(ImageMessageToBgr(good), bgr, cv::NORM_INF), 0.0);
+  sensor_msgs::Image rgb = good;
+  rgb.encoding = "rgb8";
+  const cv::Mat swapped = ImageMessageToBgr(rgb);
+  EXPECT_EQ(swapped.at<cv::Vec3b>(5, 5)[0], bgr.at<cv::Vec3b>(5, 5)[2]);
+  auto fails = [&](const std::function<void(sensor_msgs::Image&)>& edit, const std::string& cause) {
+    sensor_msgs::Image m = good;
+    edit(m);
+    return ThrowsWith<std::invalid_argument>([&] { ImageMessageToBgr(m); }, cause);
+  };
+  EXPECT_TRUE(fails([](auto& m) { m.encoding = "16UC1"; }, "image encoding"));
+  EXPECT_TRUE(fails([](auto& m) { m.width = 0; }, "image size"));
+  EXPECT_TRUE(fails([](auto& m) { m.height = 100000; }, "image size"));
+  EXPECT_TRUE(fails([](auto& m) { m.data.resize(10); }, "image data"));
+  EXPECT_TRUE(fails([](auto& m) { m.step = 3; }, "image data"));
+  EXPECT_TRUE(fails(
+      [](auto& m) {
+        m.data.clear();
+        m.width = m.height = 0;
+      },
+      "image size"));
+  EXPECT_EQ(ros_node::CauseOf("image data: 10 bytes"), "image data");
+  EXPECT_EQ(ros_node::CauseOf("placedb/index/query.cc:12: the query has surf features"),
+            "the query has surf features");
+}
+
+}  // namespace
+}  // namespace placedb
