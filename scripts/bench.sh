@@ -5,6 +5,7 @@
 #   match_bench   matching kernels vs OpenCV BFMatcher (Google Benchmark)
 #   surf_bench    our SURF (dispatched and plain) vs OpenCV SIFT and ORB
 #   placedb bench whole match stages vs the paper's BFMatcher loop
+#   ros_bench     the ROS nodes end to end vs the single-process query
 set -euo pipefail
 BUILD_DIR=${1:-build}
 PLACEDB="$BUILD_DIR/src/placedb/exe/placedb"
@@ -19,4 +20,8 @@ mkdir -p "$OUT"
   --overwrite --quiet
 "$PLACEDB" bench --db "$OUT/db_surf" --images data/rtabmap_loop/images --first 41 --queries 0 \
   --repeat 3 --json "$OUT/placedb_bench_surf.json"
+# The ROS system end to end (built with ROS): 1, 2 and 4 workers.
+if [[ -x "$BUILD_DIR/bench/ros_bench" ]]; then
+  "$BUILD_DIR/bench/ros_bench" --out "$OUT/ros" --json "$OUT/ros_bench.json"
+fi
 python3 scripts/readme_tables.py "$OUT" README.md

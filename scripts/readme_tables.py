@@ -90,6 +90,24 @@ def placedb_table(orb, surf):
     return "\n".join(rows) + "\n\n" + note
 
 
+def ros_table(r):
+    rows = ["| | ms per frame, p50 | p99 | frames / s | vs one worker | transport + voting, p50 / p99 ms |",
+            "| --- | --- | --- | --- | --- | --- |"]
+    for threads in ("1", "2"):
+        s = r["single_ms"][threads]
+        rows.append(f"| single process, {threads} thread{'s' if threads != '1' else ''} | {s['p50']:.1f} | "
+                    f"{s['p99']:.1f} | {1000 / s['mean']:.1f} | | |")
+    for w in r["ros"]:
+        l, a = w["latency_ms"], w["added_ms"]
+        rows.append(f"| ROS, {w['workers']} worker{'s' if w['workers'] > 1 else ''} | {l['p50']:.1f} | "
+                    f"{l['p99']:.1f} | {w['fps']:.1f} | {w['fps_vs_one_worker']:.2f}× | "
+                    f"{a['p50']:.2f} / {a['p99']:.2f} |")
+    answered = ", ".join(f"{w['answered']}/{w['published']}" for w in r["ros"])
+    note = (f"{r['keyframes']} keyframes ({r['features']} ORB features), {r['frames']} frames, {r['cpus']} CPUs; "
+            f"frames answered (1, 2, 4 workers): {answered}.")
+    return "\n".join(rows) + "\n\n" + note
+
+
 def main():
     out, readme = sys.argv[1], sys.argv[2]
     tables = {
@@ -98,6 +116,8 @@ def main():
         "kernels": kernel_table(benchmarks(os.path.join(out, "match_bench.json"))),
         "surf": surf_table(benchmarks(os.path.join(out, "surf_bench.json"))),
     }
+    if os.path.exists(os.path.join(out, "ros_bench.json")):
+        tables["ros"] = ros_table(load(os.path.join(out, "ros_bench.json")))
     text = open(readme).read()
     for name, table in tables.items():
         print(f"--- {name}\n{table}\n")

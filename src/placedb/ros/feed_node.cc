@@ -6,6 +6,7 @@
 // per frame on each: the image's seq is the frame's number.)
 #include <image_transport/image_transport.h>
 #include <placedb_msgs/Answer.h>
+#include <ros/callback_queue.h>
 #include <ros/ros.h>
 #include <sensor_msgs/CompressedImage.h>
 #include <std_msgs/Header.h>
@@ -68,10 +69,18 @@ int main(int argc, char** argv) {
     uint64_t answered = 0;
     bool have_answer = false;
     ros::Subscriber answers = nh.subscribe<placedb_msgs::Answer>(
-        "answers", 100, [&](const placedb_msgs::AnswerConstPtr& a) {
+        "answers", 100,
+        [&](const placedb_msgs::AnswerConstPtr& a) {
           answered = std::max(answered, a->frame_seq);
           have_answer = true;
-        });
+        },
+        ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
+    // Waits for the next answer (or `until`), sleeping in the callback queue.
+    auto wait_answer = [&](uint64_t seq, ros::WallTime until) {
+      while (ros::ok() && !(have_answer && answered >= seq) && ros::WallTime::now() < until) {
+        ros::getGlobalCallbackQueue()->callAvailable(ros::WallDuration(0.002));
+      }
+    };
     std::ofstream log;
     if (!log_file.empty()) log.open(log_file, std::ios::app);
     // Subscribers first, or the first frames go nowhere: the workers (on the

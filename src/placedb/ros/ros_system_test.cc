@@ -2,17 +2,13 @@
 // own ROS_HOME and log folder, the feed, N workers and the voter as separate
 // processes, each test in its own namespace. Everything started is stopped by
 // PID with SIGTERM (SIGKILL only after 5 s).
-#include <arpa/inet.h>
-#include <fcntl.h>
 #include <gtest/gtest.h>
-#include <netinet/in.h>
 #include <placedb_msgs/PartialResult.h>
 #include <ros/ros.h>
 #include <rosbag/bag.h>
 #include <sensor_msgs/CompressedImage.h>
 #include <sensor_msgs/Image.h>
 #include <signal.h>
-#include <sys/socket.h>
 #include <sys/wait.h>
 #include <tf2_msgs/TFMessage.h>
 #include <unistd.h>
@@ -33,6 +29,7 @@
 #include "placedb/index/place_database.h"
 #include "placedb/ros/image_conversion.h"
 #include "placedb/ros/messages.h"
+#include "placedb/ros/testbed.h"
 #include "placedb/util/file_io.h"
 #include "placedb/util/testing.h"
 
@@ -43,19 +40,6 @@ using Clock = std::chrono::steady_clock;
 
 const std::string kImages = PLACEDB_DATA_DIR "/rtabmap_loop/images";
 const std::string kNodes = std::string(PLACEDB_ROS_TREE) + "/lib/placedb/";
-
-int FreeLoopbackPort() {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  addr.sin_port = 0;
-  ::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr));
-  socklen_t len = sizeof(addr);
-  ::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len);
-  ::close(fd);
-  return ntohs(addr.sin_port);
-}
 
 std::vector<nlohmann::json> ReadJsonLines(const std::string& path) {
   std::vector<nlohmann::json> out;
@@ -73,16 +57,7 @@ class RosSystemTest : public ::testing::Test {
   static void SetUpTestSuite() {
     dir_ = new fs::path(fs::temp_directory_path() / ("placedb_ros_" + std::to_string(::getpid())));
     fs::remove_all(*dir_);
-    fs::create_directories(*dir_ / "ros_home" / "log");
-    port_ = FreeLoopbackPort();
-    const std::string uri = "http://127.0.0.1:" + std::to_string(port_);
-    ::setenv("ROS_MASTER_URI", uri.c_str(), 1);
-    ::setenv("ROS_IP", "127.0.0.1", 1);
-    ::setenv("ROS_HOME", (*dir_ / "ros_home").c_str(), 1);
-    ::setenv("ROS_LOG_DIR", (*dir_ / "ros_home" / "log").c_str(), 1);
-    ::unsetenv("ROS_HOSTNAME");
-    master_ = Spawn({"rosmaster", "--core", "-p", std::to_string(port_), "-w", "4"},
-                    (*dir_ / "master.log").string(), "");
+    ros_ = new LoopbackRos(dir_->string(), kNodes);
     // The database every test uses: images 1-40.
     BuildOptions build;
     build.threads = 2;
@@ -95,73 +70,27 @@ class RosSystemTest : public ::testing::Test {
     for (int i = 0; i < 100 && !ros::master::check(); ++i) {
       std::this_thread::sleep_for(std::chrono::milliseconds(100));
     }
-    ASSERT_TRUE(ros::master::check()) << "rosmaster did not start on port " << port_;
+    ASSERT_TRUE(ros::master::check()) << "rosmaster did not start on port " << ros_->port();
   }
   static void TearDownTestSuite() {
     ros::shutdown();
-    Stop(master_);
+    delete ros_;
     fs::remove_all(*dir_);
     delete dir_;
   }
-  void TearDown() override {
-    for (const pid_t pid : started_) Stop(pid);
-    started_.clear();
-  }
+  void TearDown() override { ros_->StopNodes(); }
 
   static std::string Db() { return (*dir_ / "db").string(); }
   static std::string Path(const std::string& name) { return (*dir_ / name).string(); }
-
-  // Starts `args` (a node of ours by its bare name, else a command on the
-  // PATH) with its output in `log`, in namespace `ns`.
-  static pid_t Spawn(std::vector<std::string> args, const std::string& log, const std::string& ns) {
-    if (fs::exists(kNodes + args[0])) args[0] = kNodes + args[0];
-    const pid_t pid = ::fork();
-    if (pid == 0) {
-      if (!ns.empty()) ::setenv("ROS_NAMESPACE", ns.c_str(), 1);
-      const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
-      ::dup2(fd, 1);
-      ::dup2(fd, 2);
-      std::vector<char*> argv;
-      for (std::string& a : args) argv.push_back(a.data());
-      argv.push_back(nullptr);
-      ::execvp(argv[0], argv.data());
-      ::_exit(127);
-    }
-    return pid;
+  static pid_t Start(const std::vector<std::string>& args, const std::string& log,
+                     const std::string& ns) {
+    return ros_->Start(args, log, ns);
   }
-  pid_t Start(const std::vector<std::string>& args, const std::string& log, const std::string& ns) {
-    const pid_t pid = Spawn(args, Path(log), ns);
-    started_.push_back(pid);
-    return pid;
-  }
-  static void Stop(pid_t pid) {
-    if (pid <= 0 || ::kill(pid, 0) != 0) {
-      ::waitpid(pid, nullptr, WNOHANG);
-      return;
-    }
-    ::kill(pid, SIGTERM);
-    for (int i = 0; i < 500; ++i) {
-      if (::waitpid(pid, nullptr, WNOHANG) == pid) return;
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
-    ::kill(pid, SIGKILL);
-    ::waitpid(pid, nullptr, 0);
-  }
-  // Waits for a process to end by itself; its exit code, or -1 on timeout.
-  static int WaitExit(pid_t pid, double seconds) {
-    const auto until = Clock::now() + std::chrono::duration<double>(seconds);
-    while (Clock::now() < until) {
-      int status = 0;
-      if (::waitpid(pid, &status, WNOHANG) == pid)
-        return WIFEXITED(status) ? WEXITSTATUS(status) : 128;
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    }
-    return -1;
-  }
-  static bool Alive(pid_t pid) { return ::waitpid(pid, nullptr, WNOHANG) == 0; }
-  // Waits until `count` nodes subscribe to `topic`.
+  static int WaitExit(pid_t pid, double seconds) { return LoopbackRos::WaitExit(pid, seconds); }
+  static bool Alive(pid_t pid) { return LoopbackRos::Alive(pid); }
+  static std::string ReadLog(const std::string& log) { return ros_->ReadLog(log); }
+  // Waits until `count` nodes subscribe to `topic` (registered at the master).
   static bool WaitSubscribers(const std::string& topic, int count, double seconds) {
-    ros::NodeHandle nh;
     const auto until = Clock::now() + std::chrono::duration<double>(seconds);
     while (Clock::now() < until) {
       XmlRpc::XmlRpcValue args, result, payload;
@@ -176,11 +105,6 @@ class RosSystemTest : public ::testing::Test {
     }
     return false;
   }
-  static std::string ReadLog(const std::string& log) {
-    std::string text;
-    DirectoryHandle(dir_->string()).ReadFile(log, &text, 64 << 20);
-    return text;
-  }
 
   // What the single-process query answers for frames 41..84.
   static std::vector<QueryResult> SingleProcess(const QueryOptions& options) {
@@ -192,13 +116,10 @@ class RosSystemTest : public ::testing::Test {
   }
 
   static fs::path* dir_;
-  static int port_;
-  static pid_t master_;
-  std::vector<pid_t> started_;
+  static LoopbackRos* ros_;
 };
 fs::path* RosSystemTest::dir_ = nullptr;
-int RosSystemTest::port_ = 0;
-pid_t RosSystemTest::master_ = -1;
+LoopbackRos* RosSystemTest::ros_ = nullptr;
 
 void ExpectSameAnswer(const nlohmann::json& line, const QueryResult& expected,
                       const std::string& what) {
@@ -301,7 +222,6 @@ TEST_F(RosSystemTest, AKilledWorkerIsAnsweredAroundAndRejoins) {
   };
   wait_answers(30);
   ::kill(workers[1], SIGKILL);
-  ::waitpid(workers[1], nullptr, 0);
   const size_t killed_at = answers_so_far();
   wait_answers(killed_at + 25);
   worker(1);  // restarted: rejoins

@@ -43,9 +43,9 @@ class Voter {
         nh_.subscribe("frames", 1000, &Voter::OnFrame, this, ros::TransportHints().tcpNoDelay());
     partial_sub_ = nh_.subscribe("partial_results", 1000, &Voter::OnPartial, this,
                                  ros::TransportHints().tcpNoDelay());
-    // Deadlines are checked every millisecond; complete frames are answered
-    // as their last partial arrives.
-    timer_ = nh_.createSteadyTimer(ros::WallDuration(0.001), &Voter::OnTimer, this);
+    // Deadlines are checked every 2 ms; complete frames are answered as their
+    // last partial arrives.
+    timer_ = nh_.createSteadyTimer(ros::WallDuration(0.002), &Voter::OnTimer, this);
   }
 
  private:

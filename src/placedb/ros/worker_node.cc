@@ -9,6 +9,7 @@
 #include <ros/ros.h>
 #include <sensor_msgs/CompressedImage.h>
 
+#include <opencv2/core/utility.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "placedb/exe/cli.h"
@@ -33,11 +34,15 @@ class Worker {
     // Queue of one: a worker that lags always answers the newest frame; the
     // voter answers the frames it skipped without it.
     if (input == "image") {
-      image_sub_ = it_.subscribe("image", 1, &Worker::OnImage, this);
+      image_sub_ =
+          it_.subscribe("image", 1, &Worker::OnImage, this,
+                        image_transport::TransportHints("raw", ros::TransportHints().tcpNoDelay()));
     } else if (input == "compressed") {
-      compressed_sub_ = nh_.subscribe("image/compressed", 1, &Worker::OnCompressed, this);
+      compressed_sub_ = nh_.subscribe("image/compressed", 1, &Worker::OnCompressed, this,
+                                      ros::TransportHints().tcpNoDelay());
     } else {
-      features_sub_ = nh_.subscribe("features", 1, &Worker::OnFeatures, this);
+      features_sub_ = nh_.subscribe("features", 1, &Worker::OnFeatures, this,
+                                    ros::TransportHints().tcpNoDelay());
     }
   }
 
@@ -149,6 +154,9 @@ int main(int argc, char** argv) {
     if (db.partition.empty()) PLACEDB_THROW_INVALID("--partition I/N is needed (e.g. 0/3)");
     placedb::ros_node::PinToCpu(cpu);
     if (cpu >= 0) ROS_INFO("placedb_worker: pinned to CPU %d", cpu);
+    // A worker is one CPU's worth of work (the paper's node per processor):
+    // OpenCV's own threads would only compete with the other workers.
+    cv::setNumThreads(1);
     placedb::PlaceDatabase opened = db.Open();
     const placedb::KeyframeSubset partition = opened.database().subset();
     ROS_INFO("placedb_worker: %s of %s, %zu keyframes, %zu features, input %s",
