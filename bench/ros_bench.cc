@@ -33,14 +33,6 @@ using placedb::LatencyStats;
 
 namespace {
 
-std::vector<nlohmann::json> ReadJsonLines(const std::string& path) {
-  std::vector<nlohmann::json> out;
-  std::ifstream in(path);
-  for (std::string line; std::getline(in, line);) {
-    if (!line.empty()) out.push_back(nlohmann::json::parse(line));
-  }
-  return out;
-}
 
 nlohmann::json StatsJson(const LatencyStats& s) {
   return {{"mean", s.mean}, {"p50", s.p50}, {"p99", s.p99}, {"max", s.max}};
@@ -134,10 +126,10 @@ int main(int argc, char** argv) {
         return 1;
       }
       std::map<uint64_t, double> published, answered, work;
-      for (const auto& j : ReadJsonLines(dir + "/feed.jsonl"))
+      for (const auto& j : placedb::LoopbackRos::ReadJsonLines(dir + "/feed.jsonl"))
         published[j["frame_seq"]] = j["wall_ms"];
       size_t complete = 0;
-      for (const auto& j : ReadJsonLines(dir + "/answers.jsonl")) {
+      for (const auto& j : placedb::LoopbackRos::ReadJsonLines(dir + "/answers.jsonl")) {
         answered[j["frame_seq"]] = j["wall_ms"];
         // The slowest partition's own time (extraction + match + verify).
         work[j["frame_seq"]] = j["result"]["times_ms"]["total"];

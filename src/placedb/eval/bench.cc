@@ -114,7 +114,7 @@ BenchReport RunBench(const PlaceDatabase& db, const std::vector<Frame>& frames,
   r.num_db_descriptors = database.num_features();
   r.feature_type = FeatureTypeName(database.feature_type());
   r.kernel =
-      database.feature_type() == FeatureType::kOrb ? HammingKernelName() : L2SquaredKernelName();
+      database.feature_type() == FeatureType::kOrb ? HammingKernelName() : L2KernelName();
   r.num_queries = n;
   r.repeat = options.repeat;
   r.extract_ms = extract_ms / n;

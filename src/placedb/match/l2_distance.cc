@@ -485,18 +485,5 @@ std::optional<L2Kernel> L2KernelFromName(const char* name) {
 
 const char* L2KernelName() { return L2KernelName(ActiveL2Kernel()); }
 
-const char* L2SquaredKernelName() {
-  switch (ActiveL2Kernel()) {
-    case Kernel::kReference:
-      return "plain";
-    case Kernel::kSse2:
-      return "sse2";
-    case Kernel::kAvx2:
-      return "avx2+fma";
-    case Kernel::kAvx512:
-      return "avx512";
-  }
-  return "plain";
-}
 
 }  // namespace placedb

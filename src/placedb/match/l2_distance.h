@@ -74,8 +74,4 @@ std::optional<L2Kernel> L2KernelFromName(const char* name);
 // Name of ActiveL2Kernel() ("reference", "sse2", "avx2", "avx512").
 const char* L2KernelName();
 
-// Kept for existing callers: the same kernel in the older spelling
-// ("plain", "sse2", "avx2+fma", "avx512").
-const char* L2SquaredKernelName();
-
 }  // namespace placedb

@@ -28,7 +28,7 @@ constexpr int kCounts[] = {0, 1, 2, 3, 7, 8, 9, 15, 16, 17, 31, 32, 33, 100, 257
 TEST(L2DistanceTest, KernelMatchesReferenceOnRandomData) {
   std::mt19937 rng(12345);
   std::uniform_real_distribution<float> dist(-1.f, 1.f);
-  std::printf("L2 kernel: %s (L2SquaredKernelName: %s)\n", L2KernelName(), L2SquaredKernelName());
+  std::printf("L2 kernel: %s\n", L2KernelName());
   for (int n : {1, 2, 3, 4, 7, 8, 9, 15, 16, 17, 31, 33, 63, 64, 65, 100, 127, 128, 129, 1000}) {
     for (int trial = 0; trial < 50; ++trial) {
       // +1 so that unaligned starts are exercised too.
@@ -370,21 +370,6 @@ TEST(L2KernelSelectionTest, ActiveKernelFollowsEnvironment) {
   const char* env = std::getenv("PLACEDB_L2_KERNEL");
   EXPECT_EQ(ActiveL2Kernel(), ChooseL2Kernel(env));
   EXPECT_STREQ(L2KernelName(), L2KernelName(ActiveL2Kernel()));
-  const std::string legacy = L2SquaredKernelName();
-  switch (ActiveL2Kernel()) {
-    case L2Kernel::kReference:
-      EXPECT_EQ(legacy, "plain");
-      break;
-    case L2Kernel::kSse2:
-      EXPECT_EQ(legacy, "sse2");
-      break;
-    case L2Kernel::kAvx2:
-      EXPECT_EQ(legacy, "avx2+fma");
-      break;
-    case L2Kernel::kAvx512:
-      EXPECT_EQ(legacy, "avx512");
-      break;
-  }
   std::mt19937 rng(31);
   std::uniform_real_distribution<float> dist(-1.f, 1.f);
   std::vector<float> db(100 * 64), query(64);

@@ -41,14 +41,6 @@ using Clock = std::chrono::steady_clock;
 const std::string kImages = PLACEDB_DATA_DIR "/rtabmap_loop/images";
 const std::string kNodes = std::string(PLACEDB_ROS_TREE) + "/lib/placedb/";
 
-std::vector<nlohmann::json> ReadJsonLines(const std::string& path) {
-  std::vector<nlohmann::json> out;
-  std::ifstream in(path);
-  for (std::string line; std::getline(in, line);) {
-    if (!line.empty()) out.push_back(nlohmann::json::parse(line));
-  }
-  return out;
-}
 
 // The master, shared by all tests, and this process as a ROS node (to send
 // hostile messages); each test's nodes run in their own namespace.
@@ -151,7 +143,7 @@ TEST_F(RosSystemTest, AnswersEqualTheSingleProcessQuery) {
                             "--rate", "0", "--log-file", Path("full_feed.jsonl")},
                            "full_feed.log", ns);
   ASSERT_EQ(WaitExit(feed, 240), 0) << ReadLog("full_feed.log");
-  const std::vector<nlohmann::json> answers = ReadJsonLines(Path("full_answers.jsonl"));
+  const std::vector<nlohmann::json> answers = placedb::LoopbackRos::ReadJsonLines(Path("full_answers.jsonl"));
   ASSERT_EQ(answers.size(), 44u) << ReadLog("full_voter.log");
   const std::vector<QueryResult> expected = SingleProcess(QueryOptions());
   for (const nlohmann::json& a : answers) {
@@ -184,7 +176,7 @@ TEST_F(RosSystemTest, WorkersOnExtractedFeatures) {
                             "--wait-for", "1", "--rate", "0"},
                            "features_feed.log", ns);
   ASSERT_EQ(WaitExit(feed, 120), 0) << ReadLog("features_feed.log");
-  const std::vector<nlohmann::json> answers = ReadJsonLines(Path("features_answers.jsonl"));
+  const std::vector<nlohmann::json> answers = placedb::LoopbackRos::ReadJsonLines(Path("features_answers.jsonl"));
   ASSERT_EQ(answers.size(), 16u) << ReadLog("features_voter.log");
   const std::vector<QueryResult> expected = SingleProcess(QueryOptions());
   for (const nlohmann::json& a : answers) {
@@ -215,7 +207,7 @@ TEST_F(RosSystemTest, AKilledWorkerIsAnsweredAroundAndRejoins) {
       Start({"placedb_feed", "--images", kImages, "--first", "41", "--rate", "8", "--loops", "3",
              "--wait-for", "3", "--log-file", Path("faults_feed.jsonl")},
             "faults_feed.log", ns);
-  auto answers_so_far = [&] { return ReadJsonLines(Path("faults_answers.jsonl")).size(); };
+  auto answers_so_far = [&] { return placedb::LoopbackRos::ReadJsonLines(Path("faults_answers.jsonl")).size(); };
   auto wait_answers = [&](size_t n) {
     for (int i = 0; i < 600 && answers_so_far() < n; ++i)
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
@@ -228,8 +220,8 @@ TEST_F(RosSystemTest, AKilledWorkerIsAnsweredAroundAndRejoins) {
   const size_t restarted_at = answers_so_far();
   ASSERT_EQ(WaitExit(feed, 120), 0) << ReadLog("faults_feed.log");
   std::this_thread::sleep_for(std::chrono::milliseconds(static_cast<int>(deadline_ms) + 300));
-  const std::vector<nlohmann::json> answers = ReadJsonLines(Path("faults_answers.jsonl"));
-  const std::vector<nlohmann::json> published = ReadJsonLines(Path("faults_feed.jsonl"));
+  const std::vector<nlohmann::json> answers = placedb::LoopbackRos::ReadJsonLines(Path("faults_answers.jsonl"));
+  const std::vector<nlohmann::json> published = placedb::LoopbackRos::ReadJsonLines(Path("faults_feed.jsonl"));
   ASSERT_EQ(published.size(), 132u);
   std::set<uint64_t> seqs;
   int partial_after_kill = 0, complete_at_end = 0;
@@ -316,7 +308,7 @@ TEST_F(RosSystemTest, MalformedMessagesAreDroppedOncePerCause) {
   // for the worker, while its announcement is the first, frame 0.)
   frames.publish(h);
   images.publish(BgrToImageMessage(good, h));
-  for (int i = 0; i < 100 && ReadJsonLines(Path("hostile_answers.jsonl")).empty(); ++i) {
+  for (int i = 0; i < 100 && placedb::LoopbackRos::ReadJsonLines(Path("hostile_answers.jsonl")).empty(); ++i) {
     if (i % 10 == 9) {  // resend until the voter answers (connections may still be settling)
       frames.publish(h);
       images.publish(BgrToImageMessage(good, h));
@@ -326,7 +318,7 @@ TEST_F(RosSystemTest, MalformedMessagesAreDroppedOncePerCause) {
   EXPECT_TRUE(Alive(voter));
   EXPECT_TRUE(Alive(image_worker));
   EXPECT_TRUE(Alive(features_worker));
-  const std::vector<nlohmann::json> answers = ReadJsonLines(Path("hostile_answers.jsonl"));
+  const std::vector<nlohmann::json> answers = placedb::LoopbackRos::ReadJsonLines(Path("hostile_answers.jsonl"));
   ASSERT_FALSE(answers.empty()) << ReadLog("hostile_voter.log");
   bool good_answered = false;
   for (const nlohmann::json& a : answers) {
@@ -367,7 +359,7 @@ TEST_F(RosSystemTest, TheLaunchFileRunsTheSystem) {
       "launch.log", "/launched");
   // The feed is required: when it has published its frames, roslaunch ends.
   EXPECT_EQ(WaitExit(launch, 240), 0) << ReadLog("launch.log");
-  const std::vector<nlohmann::json> answers = ReadJsonLines(Path("launch_answers.jsonl"));
+  const std::vector<nlohmann::json> answers = placedb::LoopbackRos::ReadJsonLines(Path("launch_answers.jsonl"));
   ASSERT_EQ(answers.size(), 15u) << ReadLog("launch.log");
   const std::vector<QueryResult> expected = SingleProcess(QueryOptions());
   for (const nlohmann::json& a : answers) {

@@ -11,6 +11,7 @@
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <thread>
 
 #include "placedb/util/check.h"
@@ -105,6 +106,15 @@ bool LoopbackRos::Alive(pid_t pid) { return ::waitpid(pid, nullptr, WNOHANG) == 
 void LoopbackRos::StopNodes() {
   for (const pid_t pid : started_) Stop(pid);
   started_.clear();
+}
+
+std::vector<nlohmann::json> LoopbackRos::ReadJsonLines(const std::string& path) {
+  std::vector<nlohmann::json> out;
+  std::ifstream in(path);
+  for (std::string line; std::getline(in, line);) {
+    if (!line.empty()) out.push_back(nlohmann::json::parse(line));
+  }
+  return out;
 }
 
 std::string LoopbackRos::ReadLog(const std::string& log) const {

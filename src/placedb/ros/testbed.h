@@ -6,6 +6,7 @@
 
 #include <sys/types.h>
 
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -38,6 +39,8 @@ class LoopbackRos {
 
   // A free TCP port on 127.0.0.1.
   static int FreeLoopbackPort();
+  // The JSON lines a node wrote (--answers-file, --log-file).
+  static std::vector<nlohmann::json> ReadJsonLines(const std::string& path);
 
  private:
   std::string dir_, nodes_dir_;
