@@ -81,6 +81,8 @@ EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_fra
   ProgressBar progress("evaluating", queries.size(), eval_options.progress);
   std::vector<double> latency, extract, match, verify;
   std::vector<ScoredAnswer> answers;
+  QueryOptions options = query_options;
+  double coverage_sum = 0.0;
   for (const Frame& q : queries) {
     QueryRecord rec;
     rec.query_id = q.id;
@@ -95,7 +97,15 @@ EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_fra
       progress.Advance();
       continue;
     }
-    rec.result = db.Query(image, query_options);
+    rec.result = db.Query(image, options);
+    if (eval_options.sequence) {
+      // The next query's prior: this one's answer (none after "no match").
+      options.prior = QueryPrior();
+      if (rec.result.best()) options.prior.keyframe_id = rec.result.best()->keyframe_id;
+    }
+    ++report.searches[rec.result.search];
+    coverage_sum += rec.result.coverage;
+    report.num_deadline_reached += rec.result.deadline_reached;
     const std::vector<RankedKeyframe>& ranked = rec.result.ranked;
     for (size_t r = 0; r < ranked.size() && r < 5; ++r) {
       const Keyframe* k = db.FindKeyframe(ranked[r].keyframe_id);
@@ -133,6 +143,7 @@ EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_fra
   report.extract_ms = ComputeLatencyStats(extract);
   report.match_ms = ComputeLatencyStats(match);
   report.verify_ms = ComputeLatencyStats(verify);
+  if (report.num_queries > 0) report.mean_coverage = coverage_sum / report.num_queries;
   report.image_bytes = DirectorySize((fs::path(db.directory()) / "images").string());
   report.feature_bytes = db.database().keyframes_bytes();
   const nlohmann::json& info = db.manifest();
@@ -181,6 +192,9 @@ nlohmann::json EvalReportToJson(const EvalReport& r) {
   j["stage_ms"] = {{"extract", StatsJson(r.extract_ms)},
                    {"match", StatsJson(r.match_ms)},
                    {"verify", StatsJson(r.verify_ms)}};
+  j["searches"] = r.searches;
+  j["mean_coverage"] = r.mean_coverage;
+  j["num_deadline_reached"] = r.num_deadline_reached;
   j["database_bytes"] = {{"images", r.image_bytes}, {"features", r.feature_bytes}};
   j["full_frames_png_bytes"] = r.full_png_bytes;
   j["reduction_vs_full"] = r.reduction_vs_full;
@@ -223,6 +237,15 @@ std::string FormatEvalReport(const EvalReport& r) {
                      r.latency_ms.mean, r.latency_ms.p50, r.latency_ms.p99);
   out += fmt::format("  stages ms         {:>10}   extract {:.2f}, match {:.2f}, verify {:.2f}\n",
                      "mean", r.extract_ms.mean, r.match_ms.mean, r.verify_ms.mean);
+  std::string searches;
+  for (const auto& [name, count] : r.searches)
+    searches += fmt::format("{}{} {}", searches.empty() ? "" : ", ", name, count);
+  out += fmt::format("  search            {:>10}   mean coverage {:.1f}% of the database\n",
+                     searches, 100.0 * r.mean_coverage);
+  if (r.num_deadline_reached > 0) {
+    out +=
+        fmt::format("  deadline reached  {:>10}   queries stopped early\n", r.num_deadline_reached);
+  }
   out += fmt::format("  stored images     {:>10} bytes\n", r.image_bytes);
   out += fmt::format("  features          {:>10} bytes\n", r.feature_bytes);
   out += fmt::format("  whole frames PNG  {:>10} bytes\n", r.full_png_bytes);

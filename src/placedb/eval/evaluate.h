@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -25,6 +26,11 @@ struct EvalOptions {
   uint64_t seed = 1;
   // Draw a progress bar on a terminal. Default true.
   bool progress = true;
+  // Replay the queries in sequence (id) order, each with the previous
+  // query's answer as its prior (QueryOptions::prior.keyframe_id), as a
+  // robot moving through the map would: realistic priors for cluster
+  // search. Default false (every query without a prior).
+  bool sequence = false;
 
   std::string Check() const;
 };
@@ -58,6 +64,12 @@ struct EvalReport {
   LatencyStats extract_ms;
   LatencyStats match_ms;
   LatencyStats verify_ms;
+  // How the queries searched (QueryResult::search): "cluster" (the prior's
+  // clusters were enough), "cluster+fallback", "cluster+global", "bow",
+  // "exhaustive", with counts.
+  std::map<std::string, int> searches;
+  double mean_coverage = 0.0;  // of the database, per query
+  int num_deadline_reached = 0;
   uint64_t image_bytes = 0;        // stored PNGs
   uint64_t feature_bytes = 0;      // the keyframe file
   uint64_t full_png_bytes = 0;     // every database frame stored whole as PNG

@@ -35,6 +35,30 @@ class BuildCommand : public Command {
         ->capture_default_str();
     cmd->add_option("--png-compression", options_.png_compression, "PNG level [0, 9]")
         ->capture_default_str();
+    cmd->add_option("--index", index_,
+                    "retrieval index: none, or bow (a vocabulary and an inverted file, for "
+                    "--search bow)")
+        ->capture_default_str()
+        ->check(CLI::IsMember({"none", "bow"}));
+    cmd->add_option("--vocabulary", options_.vocabulary_file,
+                    "bow: use this vocabulary file (e.g. another database's vocabulary.bin) "
+                    "instead of training one");
+    VocabularyOptions& v = options_.vocabulary;
+    cmd->add_option("--vocabulary-branching", v.branching, "bow: children per node [2, 64]")
+        ->capture_default_str();
+    cmd->add_option("--vocabulary-depth", v.depth,
+                    "bow: levels of the vocabulary tree [1, 8] (branching^depth <= 2^24)")
+        ->capture_default_str();
+    cmd->add_option("--vocabulary-iterations", v.iterations,
+                    "bow: clustering iterations per node [1, 100]")
+        ->capture_default_str();
+    cmd->add_option("--vocabulary-sample", v.max_training_descriptors,
+                    "bow: descriptors sampled for training [1000, 100000000]")
+        ->capture_default_str();
+    cmd->add_option("--vocabulary-seed", v.seed, "bow: training seed")->capture_default_str();
+    cmd->add_option("--direct-level", options_.bow.direct_level,
+                    "bow: vocabulary level of the direct index [0, depth]")
+        ->capture_default_str();
     AddCropOptions(cmd, options_.crop_options);
     AddExtractorOptions(cmd, options_.features);
     cmd->add_option("--json", json_, "write a JSON summary to this file ('-': stdout)");
@@ -45,6 +69,7 @@ class BuildCommand : public Command {
     BuildOptions options = options_;
     options.features.type = ParseFeatureType(features_);
     options.crop = ParseCropMode(crop_);
+    options.index = ParseIndexKind(index_);
     options.progress = !quiet_;
     options.store_images = !no_images_;
     PLACEDB_CHECK_OPTIONS(options);  // before any work or output
@@ -64,6 +89,8 @@ class BuildCommand : public Command {
                    ? 100.0 * (1.0 - static_cast<double>(r.image_bytes) / r.full_png_bytes)
                    : 0.0);
     fmt::print("feature file  {} bytes\n", r.feature_bytes);
+    if (options.index != IndexKind::kNone)
+      fmt::print("index files   {} bytes ({})\n", r.index_bytes, index_);
     fmt::print("time          {:.2f} s\n", r.seconds);
     WriteJson(json_, BuildReportToJson(r, out_));
     return 0;
@@ -74,6 +101,7 @@ class BuildCommand : public Command {
   std::string out_;
   std::string features_ = "orb";
   std::string crop_ = "none";
+  std::string index_ = "none";
   BuildOptions options_;
   bool quiet_ = false;
   bool no_images_ = false;

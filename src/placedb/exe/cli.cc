@@ -199,6 +199,12 @@ void DatabaseArgs::Add(CLI::App* cmd, const std::string& threads_what) {
   cmd->add_option("--keyframes", keyframes, "open only these keyframe ids, e.g. 3,4,17")
       ->excludes(part);
   if (!threads_what.empty()) AddThreadsOption(cmd, open.threads, threads_what);
+  cmd->add_option("--cluster-radius", open.clusters.radius_m,
+                  "cluster search: radius of a spatial cluster, in the poses' unit (0, 1e6]")
+      ->capture_default_str();
+  cmd->add_option("--cluster-keyframes", open.clusters.time_keyframes,
+                  "cluster search without poses: consecutive keyframes per cluster [1, 1000000]")
+      ->capture_default_str();
 }
 
 namespace {
@@ -243,13 +249,36 @@ PlaceDatabase DatabaseArgs::Open() const {
   return PlaceDatabase::Open(dir, o);
 }
 
-void QueryArgs::Add(CLI::App* cmd) {
+void QueryArgs::Add(CLI::App* cmd, bool for_queries) {
   QueryOptions& q = options;
   cmd->add_option("--top-k", q.top_k, "length of the ranked list [1, 10000]")
       ->capture_default_str();
-  cmd->add_option("--search", search, "retrieve stage: exhaustive")
+  cmd->add_option("--search", search,
+                  "retrieve stage: exhaustive (every keyframe), bow (bag-of-words candidates; "
+                  "needs a database built with --index bow) or cluster (the prior's "
+                  "spatial-locality clusters first, then the rest when the answer is weak)")
       ->capture_default_str()
-      ->check(CLI::IsMember({"exhaustive"}));
+      ->check(CLI::IsMember({"exhaustive", "bow", "cluster"}));
+  cmd->add_option("--bow-candidates", q.retrieval.bow_candidates,
+                  "bow: keyframes matched, best bag-of-words score first [1, 100000]")
+      ->capture_default_str();
+  cmd->add_option("--cluster-hops", q.retrieval.cluster_hops,
+                  "cluster: neighbour clusters searched around the prior's, in hops [0, 64]")
+      ->capture_default_str();
+  cmd->add_option("--cluster-fallback-score", q.retrieval.cluster_fallback_score,
+                  "cluster: a local best score below this searches the rest of the database "
+                  "(0: --min-score) [0, 100000]")
+      ->capture_default_str();
+  if (for_queries) {
+    cmd->add_option("--prior-keyframe", q.prior.keyframe_id,
+                    "cluster: id of a keyframe near the query (e.g. the last answer); 0: none "
+                    "[0, 2^31)")
+        ->capture_default_str();
+    cmd->add_option("--deadline-ms", q.deadline_ms,
+                    "time budget of retrieve + match + verify, ms; candidates are examined best "
+                    "first until it runs out (0: none) [0, 1e7]")
+        ->capture_default_str();
+  }
   cmd->add_option("--ratio", q.match.ratio, "Lowe's ratio test threshold (0, 1]")
       ->capture_default_str();
   cmd->add_option("--max-hamming", q.match.max_hamming,

@@ -36,6 +36,8 @@ std::unique_ptr<Command> MakeQueryCommand();
 std::unique_ptr<Command> MakeEvalCommand();
 std::unique_ptr<Command> MakeInfoCommand();
 std::unique_ptr<Command> MakeBenchCommand();
+std::unique_ptr<Command> MakeAddCommand();
+std::unique_ptr<Command> MakeRemoveCommand();
 
 // Where frames come from: an image folder / list, or a TUM RGB-D folder,
 // with an id range and optionally a simulated camera size.
@@ -65,7 +67,10 @@ struct QueryArgs {
   std::string search = RetrievalMethodName(options.retrieval.method);
   std::string model = GeometricModelName(options.verify.model);
 
-  void Add(CLI::App* cmd);
+  // `for_queries` false leaves out what only running a query uses (the
+  // deadline and the prior): for a voter, which only merges, and has a
+  // deadline of its own.
+  void Add(CLI::App* cmd, bool for_queries = true);
   // The options with the named choices applied.
   QueryOptions Get() const;
 };

@@ -34,6 +34,9 @@ class EvalCommand : public Command {
     all->excludes(queries);
     cmd->add_option("--seed", options_.seed, "seed of the random query selection")
         ->capture_default_str();
+    cmd->add_flag("--sequence", options_.sequence,
+                  "replay the queries in sequence order, each with the previous answer as its "
+                  "prior (for --search cluster)");
     query_.Add(cmd);
     cmd->add_flag("--quiet", quiet_, "no progress bar");
     cmd->add_option("--json", json_, "write the report as JSON to this file ('-': stdout)");

@@ -372,3 +372,76 @@ TEST_F(CliTest, BenchComparesWithBfMatcher) {
 }
 
 }  // namespace
+
+// Issue 9's commands: build --index bow, query/eval --search
+// exhaustive|bow|cluster, --deadline-ms, eval --sequence, add and remove.
+TEST_F(CliTest, SearchModesDeadlinesAndOnlineChanges) {
+  const std::string db = Path("bow");
+  const CommandResult build =
+      Placedb("build --images " + kImages + " --last 30 --index bow --vocabulary-depth 3 --out " +
+              db + " --quiet");
+  ASSERT_EQ(build.code, 0) << build.output;
+  EXPECT_TRUE(Contains(build.output, "index files")) << build.output;
+  for (const char* search : {"exhaustive", "bow", "cluster"}) {
+    const CommandResult eval =
+        Placedb("eval --db " + db + " --images " + kImages + " --first 41 --truth " + kTruth +
+                " --all --sequence --quiet --cluster-keyframes 5 --search " + search + " --json " +
+                Path(std::string(search) + ".json"));
+    ASSERT_EQ(eval.code, 0) << eval.output;
+    const auto e = nlohmann::json::parse(std::ifstream(Path(std::string(search) + ".json")));
+    EXPECT_GE(e["recall_at_1"].get<double>(), 0.85) << search;
+    EXPECT_TRUE(Contains(eval.output, "mean coverage")) << eval.output;
+    int searches = 0;
+    for (const auto& [name, count] : e["searches"].items()) {
+      EXPECT_EQ(name.rfind(search, 0), 0u) << name;
+      searches += count.get<int>();
+    }
+    EXPECT_EQ(searches, e["num_queries"].get<int>());
+    if (std::string(search) == "bow") EXPECT_LT(e["mean_coverage"].get<double>(), 1.0);
+  }
+  const CommandResult deadline =
+      Placedb("query --db " + db + " --image " + kImages +
+              "/042.jpg --deadline-ms 0.000001 --json " + Path("d.json"));
+  ASSERT_EQ(deadline.code, 0) << deadline.output;
+  EXPECT_TRUE(Contains(deadline.output, "stopped by the deadline")) << deadline.output;
+  const auto d = nlohmann::json::parse(std::ifstream(Path("d.json")));
+  EXPECT_TRUE(d["deadline_reached"].get<bool>());
+  EXPECT_LT(d["coverage"].get<double>(), 1.0);
+  EXPECT_EQ(Placedb("query --db " + db + " --image " + kImages + "/042.jpg --deadline-ms -1").code,
+            1);
+
+  // A database without an index says how to get one.
+  const std::string plain = Path("plain");
+  ASSERT_EQ(Placedb("build --images " + kImages + " --last 30 --out " + plain + " --quiet").code,
+            0);
+  const CommandResult no_index =
+      Placedb("query --db " + plain + " --image " + kImages + "/042.jpg --search bow");
+  EXPECT_EQ(no_index.code, 1);
+  EXPECT_TRUE(Contains(no_index.output, "--index bow")) << no_index.output;
+
+  // add / remove, saved in place; the database then answers with them.
+  const CommandResult add =
+      Placedb("add --db " + db + " --images " + kImages + " --first 31 --last 40 --quiet");
+  ASSERT_EQ(add.code, 0) << add.output;
+  EXPECT_TRUE(Contains(add.output, "now has 40 keyframes")) << add.output;
+  const CommandResult again =
+      Placedb("add --db " + db + " --images " + kImages + " --first 40 --last 41 --quiet");
+  EXPECT_EQ(again.code, 1);
+  EXPECT_TRUE(Contains(again.output, "already a keyframe")) << again.output;
+  EXPECT_EQ(Placedb("add --db " + db + " --images " + kImages +
+                    " --first 40 --last 41 --skip-existing --quiet")
+                .code,
+            0);
+  const CommandResult self = Placedb("query --db " + db + " --image " + kImages +
+                                     "/035.jpg --search bow --json " + Path("s.json"));
+  ASSERT_EQ(self.code, 0) << self.output;
+  EXPECT_EQ(nlohmann::json::parse(std::ifstream(Path("s.json")))["best"]["keyframe_id"], 35);
+  const CommandResult remove = Placedb("remove --db " + db + " --ids 35,36");
+  ASSERT_EQ(remove.code, 0) << remove.output;
+  EXPECT_TRUE(Contains(remove.output, "now has 39 keyframes")) << remove.output;
+  const CommandResult missing = Placedb("remove --db " + db + " --ids 35");
+  EXPECT_EQ(missing.code, 1);
+  EXPECT_TRUE(Contains(missing.output, "not in")) << missing.output;
+  const CommandResult info = Placedb("info --db " + db);
+  EXPECT_TRUE(Contains(info.output, "keyframes       39")) << info.output;
+}

@@ -31,6 +31,8 @@ int main(int argc, char** argv) {
   commands.push_back(cli::MakeEvalCommand());
   commands.push_back(cli::MakeInfoCommand());
   commands.push_back(cli::MakeBenchCommand());
+  commands.push_back(cli::MakeAddCommand());
+  commands.push_back(cli::MakeRemoveCommand());
   std::vector<std::pair<CLI::App*, cli::Command*>> table;
   for (auto& c : commands) table.emplace_back(c->Register(app), c.get());
   try {

@@ -55,6 +55,9 @@ class QueryCommand : public Command {
         "features, {} keyframes examined\n",
         r.times.total_ms, r.times.extract_ms, r.times.match_ms, r.times.verify_ms,
         r.num_query_features, r.num_examined);
+    fmt::print("search        {}{}, {:.1f}% of {} keyframes examined{}\n", r.search,
+               r.cluster >= 0 ? fmt::format(" (cluster {})", r.cluster) : "", 100.0 * r.coverage,
+               r.num_keyframes, r.deadline_reached ? ", stopped by the deadline" : "");
     nlohmann::json j = r;
     j["query"] = image_;
     j["database"] = db_.dir;

@@ -18,6 +18,7 @@
 
 #include "placedb/image/resize.h"
 #include "placedb/util/check.h"
+#include "placedb/util/checksum.h"
 #include "placedb/util/file_io.h"
 #include "placedb/util/json_reader.h"
 #include "placedb/util/options.h"
@@ -37,14 +38,24 @@ CropMode ParseCropMode(const std::string& name) {
   PLACEDB_THROW_INVALID("unknown crop mode '", name, "' (expected none or chroma)");
 }
 
+const char* IndexKindName(IndexKind kind) { return kind == IndexKind::kBow ? "bow" : "none"; }
+
+IndexKind ParseIndexKind(const std::string& name) {
+  if (name == "none") return IndexKind::kNone;
+  if (name == "bow") return IndexKind::kBow;
+  PLACEDB_THROW_INVALID("unknown index '", name, "' (expected none or bow)");
+}
+
 std::string BuildOptions::Check() const {
   if (crop != CropMode::kNone && crop != CropMode::kChroma) return "crop is unknown";
+  if (index != IndexKind::kNone && index != IndexKind::kBow) return "index is unknown";
   if (!IsValidAreaDivisor(resize))
     return "resize must be 1, 4 or 16 (got " + std::to_string(resize) + ")";
   return FirstReason({CheckRange("png_compression", png_compression, 0, 9),
                       CheckRange("threads", threads, 0, 1024),
                       Nested("crop_options", crop_options.Check()),
-                      Nested("features", features.Check())});
+                      Nested("features", features.Check()),
+                      Nested("vocabulary", vocabulary.Check()), Nested("bow", bow.Check())});
 }
 
 ProcessedFrame ProcessFrame(const Frame& frame, const cv::Mat& image, const BuildOptions& options,
@@ -123,6 +134,7 @@ nlohmann::json BuildReportToJson(const BuildReport& r, const std::string& databa
           {"image_bytes", r.image_bytes},
           {"feature_bytes", r.feature_bytes},
           {"full_png_bytes", r.full_png_bytes},
+          {"index_bytes", r.index_bytes},
           {"seconds", r.seconds}};
 }
 
@@ -138,6 +150,20 @@ nlohmann::json BuildSettingsToJson(const BuildOptions& o) {
   j["features"]["orb"] = o.features.orb;
   j["features"]["surf"] = o.features.surf;
   j["features"]["upscale_below"] = o.features.upscale_below;
+  j["index"] = IndexKindName(o.index);
+  if (o.index == IndexKind::kBow) {
+    const VocabularyOptions& v = o.vocabulary;
+    if (o.vocabulary_file.empty()) {
+      j["vocabulary"] = {{"branching", v.branching},
+                         {"depth", v.depth},
+                         {"iterations", v.iterations},
+                         {"max_training_descriptors", v.max_training_descriptors},
+                         {"seed", v.seed}};
+    } else {
+      j["vocabulary_file"] = o.vocabulary_file;
+    }
+    j["bow"] = {{"direct_level", o.bow.direct_level}};
+  }
   return j;
 }
 
@@ -187,6 +213,27 @@ BuildOptions BuildOptionsFromManifest(const nlohmann::json& manifest, const std:
   surf.Read("extended", &so.extended);
   surf.Read("upright", &so.upright);
   surf.Read("max_features", &so.max_features);
+  // A manifest without the field predates retrieval indexes.
+  if (s.Has("index")) {
+    try {
+      o.index = ParseIndexKind(s.String("index"));
+    } catch (const std::invalid_argument& e) {
+      PLACEDB_THROW_RUNTIME(dir, "/manifest.json: settings: ", e.what());
+    }
+  }
+  if (o.index == IndexKind::kBow) {
+    if (s.Has("vocabulary")) {
+      const JsonReader v = s.Child("vocabulary");
+      VocabularyOptions& vo = o.vocabulary;
+      v.Read("branching", &vo.branching);
+      v.Read("depth", &vo.depth);
+      v.Read("iterations", &vo.iterations);
+      v.Read("max_training_descriptors", &vo.max_training_descriptors);
+      vo.seed = static_cast<uint64_t>(v.Integer("seed", 0, INT64_MAX));
+    }
+    if (s.Has("vocabulary_file")) o.vocabulary_file = s.String("vocabulary_file");
+    s.Child("bow").Read("direct_level", &o.bow.direct_level);
+  }
   const std::string reason = o.Check();
   if (!reason.empty()) PLACEDB_THROW_RUNTIME(dir, "/manifest.json: settings: ", reason);
   return o;
@@ -265,6 +312,67 @@ void CommitDirectory(const fs::path& tmp, const fs::path& out) {
 #endif
   }
   SyncDirectory(out.parent_path().empty() ? "." : out.parent_path().string());
+}
+
+}  // namespace
+
+std::string SaveBowIndexFile(const BowIndex& index, const std::string& dir) {
+  const std::string name = "bow." + ChecksumHex(index.checksum()) + ".bin";
+  index.Save((fs::path(dir) / name).string());
+  return name;
+}
+
+bool IsBowIndexFileName(const std::string& name) {
+  if (name.size() != 24 || name.compare(0, 4, "bow.") != 0 || name.compare(20, 4, ".bin") != 0)
+    return false;
+  return std::all_of(name.begin() + 4, name.begin() + 20,
+                     [](char c) { return std::isdigit(c) || (c >= 'a' && c <= 'f'); });
+}
+
+namespace {
+
+// The bag-of-words index files of a database, written into its directory.
+struct IndexFiles {
+  nlohmann::json manifest;  // the manifest's "index" entry
+  uint64_t bytes = 0;
+};
+
+IndexFiles WriteBowIndex(const Database& db, const BuildOptions& options, const std::string& dir,
+                         ThreadPool* pool) {
+  std::shared_ptr<const Vocabulary> vocabulary;
+  if (!options.vocabulary_file.empty()) {
+    auto given = std::make_shared<Vocabulary>(Vocabulary::Open(options.vocabulary_file));
+    if (given->type() != db.feature_type() || given->row_bytes() != db.descriptor_bytes()) {
+      PLACEDB_THROW_INVALID("vocabulary ", options.vocabulary_file, " is for ",
+                            FeatureTypeName(given->type()), " descriptors of ", given->row_bytes(),
+                            " bytes, the database holds ", FeatureTypeName(db.feature_type()),
+                            " descriptors of ", db.descriptor_bytes(), " bytes");
+    }
+    vocabulary = std::move(given);
+  } else {
+    std::vector<DescriptorBlock> blocks;
+    blocks.reserve(db.size());
+    for (size_t i = 0; i < db.size(); ++i) blocks.push_back(db.Descriptors(i));
+    ProgressBar progress("vocabulary", Vocabulary::TrainingWork(blocks, options.vocabulary),
+                         options.progress);
+    vocabulary = std::make_shared<Vocabulary>(
+        Vocabulary::Train(blocks, options.vocabulary, pool, &progress));
+    progress.Finish();
+  }
+  ProgressBar progress("bow index", db.size(), options.progress);
+  const BowIndex index = BowIndex::Build(vocabulary, db, options.bow, pool, &progress);
+  progress.Finish();
+  const fs::path vocabulary_path = fs::path(dir) / kVocabularyFile;
+  vocabulary->Save(vocabulary_path.string());
+  const std::string index_name = SaveBowIndexFile(index, dir);
+  const fs::path index_path = fs::path(dir) / index_name;
+  IndexFiles files;
+  files.bytes = fs::file_size(vocabulary_path) + fs::file_size(index_path);
+  files.manifest = {{"kind", "bow"},
+                    {"vocabulary", kVocabularyFile},
+                    {"vocabulary_words", vocabulary->num_words()},
+                    {"bow", index_name}};
+  return files;
 }
 
 }  // namespace
@@ -370,6 +478,12 @@ BuildReport BuildDatabase(const std::vector<Frame>& frames, const BuildOptions& 
     info["counts"]["cropped"] = report.num_cropped;
     info["bytes"]["images"] = report.image_bytes;
     info["bytes"]["full_frames_png"] = report.full_png_bytes;
+    if (options.index == IndexKind::kBow) {
+      const IndexFiles files = WriteBowIndex(db, options, tmp.string(), &pool);
+      info["index"] = files.manifest;
+      info["bytes"]["index"] = files.bytes;
+      report.index_bytes = files.bytes;
+    }
     report.feature_bytes = db.Save(tmp.string()).keyframes_bytes;
     CommitDirectory(tmp, out);
     report.seconds = timer.ElapsedSeconds();

@@ -9,7 +9,9 @@
 #include "placedb/dataset/frame.h"
 #include "placedb/feature/extractor.h"
 #include "placedb/image/feature_rich_crop.h"
+#include "placedb/index/bow_index.h"
 #include "placedb/index/database.h"
+#include "placedb/index/vocabulary.h"
 
 namespace placedb {
 
@@ -17,6 +19,22 @@ enum class CropMode { kNone, kChroma };
 const char* CropModeName(CropMode mode);
 // Parses "none" / "chroma"; throws std::invalid_argument.
 CropMode ParseCropMode(const std::string& name);
+
+// The bag-of-words files of a database built with index bow (named in its
+// manifest's "index").
+constexpr const char* kVocabularyFile = "vocabulary.bin";
+// The index file is named by its content, bow.<checksum>.bin, so that a
+// database saved in place (online mapping) never overwrites the file the
+// current manifest names. Returns the name written inside `dir`.
+std::string SaveBowIndexFile(const BowIndex& index, const std::string& dir);
+bool IsBowIndexFileName(const std::string& name);
+
+// The retrieval index built with a database.
+enum class IndexKind { kNone, kBow };
+// "none" / "bow".
+const char* IndexKindName(IndexKind kind);
+// Parses "none" / "bow"; throws std::invalid_argument.
+IndexKind ParseIndexKind(const std::string& name);
 
 struct BuildOptions {
   // Feature-rich cropping (the paper's method) or none. Default none.
@@ -37,6 +55,17 @@ struct BuildOptions {
   // PNG compression level for stored images (and the whole-frame reference
   // size). Range [0, 9]. Default 3 (libpng's balance of size and speed).
   int png_compression = 3;
+  // Retrieval index: none (exhaustive search only), or bow: a vocabulary
+  // (trained on the keyframes' descriptors, or vocabulary_file) and its
+  // inverted and direct index, stored beside the keyframes. Default none.
+  IndexKind index = IndexKind::kNone;
+  // Vocabulary training, for index bow without vocabulary_file.
+  VocabularyOptions vocabulary;
+  // A vocabulary file to use instead of training one (so that many databases
+  // share one); it is copied into the database. "" = train. Default "".
+  std::string vocabulary_file;
+  // The direct index's level.
+  BowIndexOptions bow;
   // Worker threads; 0 = one per core. Range [0, 1024]. Default 0.
   int threads = 0;
   // Abort on the first unreadable image instead of skipping it. Default false.
@@ -59,6 +88,7 @@ struct BuildReport {
   uint64_t image_bytes = 0;     // stored PNGs
   uint64_t feature_bytes = 0;   // the keyframe file
   uint64_t full_png_bytes = 0;  // every readable frame stored whole as PNG
+  uint64_t index_bytes = 0;     // the vocabulary and bag-of-words index files
   double seconds = 0.0;
 };
 

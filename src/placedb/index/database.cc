@@ -207,6 +207,59 @@ void Database::AddKeyframe(Keyframe keyframe, const FeatureSet& features) {
   keyframes_in_file_ = keyframes_.size();
 }
 
+bool Database::HasRoomFor(size_t keyframes, size_t features) const {
+  if (mapping_) return false;
+  return keyframes_.capacity() - keyframes_.size() >= keyframes &&
+         row_offset_.capacity() - row_offset_.size() >= keyframes &&
+         feature_count_.capacity() - feature_count_.size() >= keyframes &&
+         positive_count_.capacity() - positive_count_.size() >= keyframes &&
+         keypoints_.capacity() - keypoints_.size() >= features &&
+         descriptors_.capacity() - descriptors_.size() >= features * descriptor_bytes_ &&
+         static_cast<double>(index_of_id_.size() + keyframes) <=
+             static_cast<double>(index_of_id_.bucket_count()) * index_of_id_.max_load_factor();
+}
+
+void Database::Reserve(size_t keyframes, size_t features) {
+  CopyOnWrite();
+  keyframes_.reserve(keyframes);
+  row_offset_.reserve(keyframes);
+  feature_count_.reserve(keyframes);
+  positive_count_.reserve(keyframes);
+  index_of_id_.reserve(keyframes);
+  keypoints_.reserve(features);
+  descriptors_.reserve(features * descriptor_bytes_);
+}
+
+FeatureSet Database::Features(size_t index) const {
+  FeatureSet f;
+  f.type = feature_type_;
+  const Span<cv::KeyPoint> kp = Keypoints(index);
+  f.keypoints.assign(kp.begin(), kp.end());
+  const DescriptorBlock block = Descriptors(index);
+  const int cols = feature_type_ == FeatureType::kOrb ? descriptor_bytes_ : descriptor_bytes_ / 4;
+  const int type = feature_type_ == FeatureType::kOrb ? CV_8U : CV_32F;
+  cv::Mat(block.rows, cols, type, const_cast<uint8_t*>(block.data)).copyTo(f.descriptors);
+  if (f.descriptors.empty()) f.descriptors = cv::Mat(0, cols, type);
+  return f;
+}
+
+Database Database::Compacted(const std::vector<char>& keep) const {
+  PLACEDB_CHECK(keep.size() == keyframes_.size(), "one flag per keyframe expected");
+  Database out(feature_type_, descriptor_bytes_);
+  size_t kept = 0, rows = 0;
+  for (size_t i = 0; i < keep.size(); ++i) {
+    if (!keep[i]) continue;
+    ++kept;
+    rows += feature_count_[i];
+  }
+  out.Reserve(kept, rows);
+  for (size_t i = 0; i < keep.size(); ++i) {
+    if (keep[i]) out.AddKeyframe(keyframes_[i], Features(i));
+  }
+  out.info_ = info_;
+  return out;
+}
+
 // ---- writing ------------------------------------------------------------------
 
 std::string Database::KeyframesFileName(uint64_t checksum) {

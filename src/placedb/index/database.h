@@ -58,9 +58,9 @@ struct Keyframe {
 
 // Why a keyframe record is impossible, or "" when it is fine: an id below 1, a
 // crop channel outside [-1, 2], a negative size or crop, an image side above
-// 2^20 pixels, a crop outside a known original size, a scale that is not finite and in (0, 64], a timestamp
-// that is not finite, a pose with non-finite values or a quaternion that is
-// not of unit length, paths longer than 64 KiB.
+// 2^20 pixels, a crop outside a known original size, a scale that is not finite and in (0, 64], a
+// timestamp that is not finite, a pose with non-finite values or a quaternion that is not of unit
+// length, paths longer than 64 KiB.
 std::string CheckKeyframe(const Keyframe& keyframe);
 
 // What Load reads of the keyframe file.
@@ -114,6 +114,18 @@ class Database {
   // type, width or count disagree with the database, or a keypoint is not
   // finite. SURF features are reordered, positive Laplacian first.
   void AddKeyframe(Keyframe keyframe, const FeatureSet& features);
+  // Room for keyframes and feature rows to be appended without moving any
+  // storage (a database used in place from its file has none: the first
+  // AddKeyframe copies it). Reserve makes that room (and copies a mapped
+  // database into owned storage). For online mapping: grow a copy where no
+  // reader looks, then append in place.
+  bool HasRoomFor(size_t keyframes, size_t features) const;
+  void Reserve(size_t keyframes, size_t features);
+  // The keyframes whose `keep` flag is set (keep.size() == size()), in the
+  // same order, with their features and this database's info.
+  Database Compacted(const std::vector<char>& keep) const;
+  // The features of keyframe `index` as a FeatureSet (a copy).
+  FeatureSet Features(size_t index) const;
 
   // Everything about how the database was built, free-form JSON kept in the
   // manifest (settings, source, sizes). Set by the builder.

@@ -6,7 +6,9 @@
 //   placedb::QueryResult r = db.Query(cv::imread("frame.png"));
 //   if (const placedb::RankedKeyframe* best = r.best()) use(best->keyframe_id, best->pose);
 //
-// Query methods are const and thread-safe.
+// Query methods are const and thread-safe. Online mapping (Add, Remove,
+// Save) may run while queries do: a query sees the keyframes as they were
+// when it started, and an addition becomes visible all at once.
 #pragma once
 
 #include <memory>
@@ -18,7 +20,9 @@
 
 #include "placedb/feature/extractor.h"
 #include "placedb/index/builder.h"
+#include "placedb/index/clusters.h"
 #include "placedb/index/database.h"
+#include "placedb/index/growing_bow_index.h"
 #include "placedb/index/keyframe_subset.h"
 #include "placedb/index/query.h"
 
@@ -34,6 +38,9 @@ struct OpenOptions {
   // Threads each query uses for matching and verification; 0 = one per core.
   // Range [0, 1024]. Default 1.
   int threads = 1;
+  // How keyframes are grouped for cluster search (made when the database
+  // opens, from the keyframes' poses or their order).
+  ClusterOptions clusters;
 
   std::string Check() const;
 };
@@ -67,6 +74,11 @@ class PlaceDatabase {
   std::string StoredImagePath(const Keyframe& keyframe) const;
   // The pool queries run on (nullptr for one thread).
   ThreadPool* pool() const;
+  // The bag-of-words index (nullptr when the database was built without
+  // one: then bow search is an error naming the rebuild flag).
+  const GrowingBowIndex* bow_index() const;
+  // The spatial-locality clusters of the opened keyframes.
+  const ClusterSet& clusters() const;
 
   // The query features of an image, as Query(image) computes them: an 8-bit
   // gray, BGR or BGRA frame, full and uncropped. An empty image or another
@@ -84,6 +96,28 @@ class PlaceDatabase {
                          const QueryOptions& options = QueryOptions()) const;
   QueryResult QueryAmong(const FeatureSet& features, const std::vector<uint32_t>& keyframes,
                          const QueryOptions& options = QueryOptions()) const;
+
+  // ---- Online mapping: the robot keeps mapping while it localises ----------
+  // Adds a keyframe made from `image` (8-bit gray, BGR or BGRA) as the
+  // database was built: crop, resize, features, the stored PNG when the
+  // database keeps images. `frame` gives its id (>= 1, new), timestamp, pose
+  // and source path. The work is done before the keyframe is published:
+  // queries wait only while it is appended, and see it whole or not at all.
+  // Writers are serialised. std::invalid_argument for a taken id, a bad
+  // image or a session opened on a subset (open the whole database).
+  void Add(const Frame& frame, const cv::Mat& image);
+  // The same with features computed elsewhere (in the stored image's frame).
+  void Add(Keyframe keyframe, const FeatureSet& features);
+  // Takes keyframe `id` out of every later answer; false when there is no
+  // such keyframe. Its storage is reclaimed by Save.
+  bool Remove(int32_t id);
+  // Keyframes added or removed since the database was opened or saved.
+  size_t num_pending_changes() const;
+  // Writes the keyframes as they are now back to directory(), crash-safely
+  // (the previous generation stays until the new manifest is in place),
+  // rebuilding the bag-of-words index with the same vocabulary. The session
+  // then reads the saved generation: it answers as a reopened database does.
+  void Save();
 
  private:
   struct Impl;

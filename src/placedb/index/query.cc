@@ -1,10 +1,13 @@
 #include "placedb/index/query.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <filesystem>
+#include <iterator>
 #include <unordered_set>
 
+#include "placedb/index/clusters.h"
 #include "placedb/util/check.h"
 #include "placedb/util/json_reader.h"
 #include "placedb/util/options.h"
@@ -18,7 +21,15 @@ std::string QueryOptions::Check() const {
   return FirstReason(
       {CheckRange("top_k", top_k, 1, 10000), CheckRange("min_matches", min_matches, 1, 100000),
        Nested("retrieval", retrieval.Check()), Nested("match", match.Check()),
-       Nested("verify", verify.Check()), CheckRange("min_score", min_score, 0.0, 100000.0)});
+       Nested("verify", verify.Check()), CheckRange("min_score", min_score, 0.0, 100000.0),
+       CheckRange("deadline_ms", deadline_ms, 0.0, 1e7), Nested("prior", prior.Check())});
+}
+
+std::string QueryPrior::Check() const {
+  if (keyframe_id < 0) return "keyframe_id must be >= 0 (got " + std::to_string(keyframe_id) + ")";
+  if (pose && (!pose->translation.allFinite() || !pose->rotation.coeffs().allFinite()))
+    return "pose is not finite";
+  return "";
 }
 
 QueryOptions QueryOptions::ForPartition() const {
@@ -108,6 +119,10 @@ void to_json(nlohmann::json& j, const QueryResult& r) {
   j["num_keyframes"] = r.num_keyframes;
   j["num_examined"] = r.num_examined;
   j["num_verified"] = r.num_verified;
+  j["coverage"] = r.coverage;
+  j["deadline_reached"] = r.deadline_reached;
+  j["search"] = r.search;
+  j["cluster"] = r.cluster;
   j["times_ms"] = {{"extract", r.times.extract_ms},
                    {"retrieve", r.times.retrieve_ms},
                    {"match", r.times.match_ms},
@@ -130,6 +145,11 @@ void from_json(const nlohmann::json& json, QueryResult& out) {
   r.num_keyframes = static_cast<size_t>(j.Integer("num_keyframes", 0, INT64_MAX));
   r.num_examined = static_cast<size_t>(j.Integer("num_examined", 0, INT64_MAX));
   r.num_verified = static_cast<size_t>(j.Integer("num_verified", 0, INT64_MAX));
+  r.coverage = j.Number("coverage");
+  if (r.coverage < 0.0 || r.coverage > 1.0) j.Fail("coverage", "is not in [0, 1]");
+  r.deadline_reached = j.Boolean("deadline_reached");
+  r.search = j.String("search");
+  r.cluster = static_cast<int>(j.Integer("cluster", -1, INT32_MAX));
   const JsonReader t = j.Child("times_ms");
   r.times.extract_ms = t.Number("extract");
   r.times.retrieve_ms = t.Number("retrieve");
@@ -208,6 +228,12 @@ void Decide(QueryResult* r, const QueryOptions& options) {
   r->matched = !r->ranked.empty() && r->ranked.front().score >= options.min_score;
 }
 
+double CoverageOf(const QueryResult& r) {
+  return r.num_keyframes == 0
+             ? 0.0
+             : static_cast<double>(r.num_examined) / static_cast<double>(r.num_keyframes);
+}
+
 // How many of the match stage's best keyframes go on.
 size_t KeptAfterMatching(const QueryOptions& options) {
   return static_cast<size_t>(options.verify.enabled ? options.verify.num_candidates
@@ -216,41 +242,30 @@ size_t KeptAfterMatching(const QueryOptions& options) {
 
 }  // namespace
 
-QueryResult QueryDatabase(const Database& db, const FeatureSet& query, const QueryOptions& options,
-                          const QueryContext& context) {
-  PLACEDB_CHECK_OPTIONS(options);
-  ValidateQueryFeatures(query, db);
-  PLACEDB_CHECK(db.has_features(), "the database was opened as a keyframe table, without features");
-  Timer total;
+namespace {
+
+// retrieve -> match -> verify -> decide over `among` (sorted, unique, in
+// range; nullptr = the whole database) with `retriever`. `clock` started with
+// the query: the deadline is measured from it.
+QueryResult RunStages(const Database& db, const FeatureSet& query, const QueryOptions& options,
+                      const QueryContext& context, const std::vector<uint32_t>* among,
+                      const Retriever& retriever, const Timer& clock) {
   QueryResult result;
   result.num_query_features = static_cast<int>(query.size());
-  std::vector<uint32_t> among;
-  if (context.among != nullptr) {
-    among = *context.among;
-    std::sort(among.begin(), among.end());
-    among.erase(std::unique(among.begin(), among.end()), among.end());
-    if (!among.empty() && among.back() >= db.size()) {
-      PLACEDB_THROW_INVALID("keyframe index ", among.back(), " is out of range (the database has ",
-                            db.size(), " keyframes)");
-    }
-  }
-  result.num_keyframes = context.among ? among.size() : db.size();
+  result.num_keyframes = among ? among->size() : db.size();
+  result.search = RetrievalMethodName(retriever.method());
+  const double deadline = options.deadline_ms;
+  auto out_of_time = [&] { return deadline > 0.0 && clock.ElapsedMs() >= deadline; };
 
   // Retrieve.
   Timer stage;
-  std::unique_ptr<Retriever> own_retriever;
-  const Retriever* retriever = context.retriever;
-  if (retriever == nullptr) {
-    own_retriever = Retriever::Create(options.retrieval, db);
-    retriever = own_retriever.get();
-  }
-  const std::vector<Candidate> candidates =
-      retriever->Retrieve(db, query, context.among ? &among : nullptr);
+  const std::vector<Candidate> candidates = retriever.Retrieve(db, query, among);
   result.times.retrieve_ms = stage.ElapsedMs();
-  result.num_examined = candidates.size();
 
   // Match: contiguous chunks of the candidates, each keeping its best; the
-  // merged best do not depend on the chunking.
+  // merged best do not depend on the chunking. Under a deadline the threads
+  // take candidates in prior order instead, until the time is out (the first
+  // candidate is always examined).
   stage.Restart();
   // SURF: the query's rows grouped by Laplacian sign, like the database's.
   const GroupedFeatures grouped = GroupByLaplacian(query);
@@ -263,14 +278,30 @@ QueryResult QueryDatabase(const Database& db, const FeatureSet& query, const Que
           ? 1
           : std::max<size_t>(1, std::min(n, static_cast<size_t>(context.pool->size())));
   std::vector<std::vector<Examined>> partial(chunks);
+  std::atomic<size_t> next{0};
+  std::atomic<size_t> examined{0};
+  std::atomic<bool> stopped{false};
   auto match_chunk = [&](size_t c) {
     std::vector<Examined>& out = partial[c];
     std::vector<cv::DMatch> matches;
-    for (size_t i = n * c / chunks; i < n * (c + 1) / chunks; ++i) {
+    const size_t first = n * c / chunks, last = n * (c + 1) / chunks;
+    for (size_t k = first;; ++k) {
+      size_t i = k;
+      if (deadline > 0.0) {
+        i = next.fetch_add(1);
+        if (i >= n) break;
+        if (i > 0 && out_of_time()) {
+          stopped = true;
+          break;
+        }
+      } else if (k >= last) {
+        break;
+      }
       const uint32_t index = candidates[i].index;
       matches.clear();
       const int good = MatchDescriptors(block, db.Descriptors(index), options.match,
                                         need_matches ? &matches : nullptr);
+      examined.fetch_add(1, std::memory_order_relaxed);
       if (good < options.min_matches) continue;
       out.push_back(
           {index, db.keyframe(index).id, good, need_matches ? matches : std::vector<cv::DMatch>()});
@@ -283,6 +314,7 @@ QueryResult QueryDatabase(const Database& db, const FeatureSet& query, const Que
   } else {
     context.pool->ParallelFor(chunks, match_chunk);
   }
+  result.num_examined = examined.load();
   std::vector<Examined> best;
   for (auto& p : partial) {
     for (auto& e : p) best.push_back(std::move(e));
@@ -290,9 +322,10 @@ QueryResult QueryDatabase(const Database& db, const FeatureSet& query, const Que
   KeepBest(&best, keep);
   result.times.match_ms = stage.ElapsedMs();
 
-  // Verify.
+  // Verify (under a deadline, the best by matches first; the first always).
   stage.Restart();
   std::vector<RankedKeyframe> ranked(best.size());
+  std::vector<char> done(best.size(), 1);
   auto fill = [&](size_t i) {
     const Examined& e = best[i];
     const Keyframe& k = db.keyframe(e.index);
@@ -309,6 +342,11 @@ QueryResult QueryDatabase(const Database& db, const FeatureSet& query, const Que
                            : (fs::path(context.image_dir) / k.image_file).string();
     }
     if (!options.verify.enabled) return;
+    if (i > 0 && out_of_time()) {
+      done[i] = 0;
+      stopped = true;
+      return;
+    }
     const Span<cv::KeyPoint> keypoints = db.Keypoints(e.index);
     std::vector<cv::Point2f> q, t;
     q.reserve(e.matches.size());
@@ -325,15 +363,135 @@ QueryResult QueryDatabase(const Database& db, const FeatureSet& query, const Que
   } else {
     context.pool->ParallelFor(ranked.size(), fill);
   }
+  if (std::find(done.begin(), done.end(), 0) != done.end()) {
+    std::vector<RankedKeyframe> kept;
+    for (size_t i = 0; i < ranked.size(); ++i) {
+      if (done[i]) kept.push_back(std::move(ranked[i]));
+    }
+    ranked = std::move(kept);
+  }
   if (options.verify.enabled) result.num_verified = ranked.size();
   result.times.verify_ms = options.verify.enabled ? stage.ElapsedMs() : 0.0;
+  result.deadline_reached = stopped.load();
 
   // Rank and decide.
   std::sort(ranked.begin(), ranked.end(), RanksFirst);
   if (ranked.size() > static_cast<size_t>(options.top_k)) ranked.resize(options.top_k);
   result.ranked = std::move(ranked);
   Decide(&result, options);
-  result.times.total_ms = total.ElapsedMs();
+  result.coverage = CoverageOf(result);
+  return result;
+}
+
+// The keyframes of `among` (nullptr: all of [0, n)) that are not in `local`
+// (both sorted).
+std::vector<uint32_t> Complement(size_t n, const std::vector<uint32_t>* among,
+                                 const std::vector<uint32_t>& local) {
+  std::vector<uint32_t> all;
+  if (among != nullptr) {
+    all = *among;
+  } else {
+    all.resize(n);
+    for (size_t i = 0; i < n; ++i) all[i] = static_cast<uint32_t>(i);
+  }
+  std::vector<uint32_t> out;
+  std::set_difference(all.begin(), all.end(), local.begin(), local.end(), std::back_inserter(out));
+  return out;
+}
+
+// Cluster search: the prior's clusters first, the rest only when the local
+// answer is weak; the two stages' results merge into the answer the union
+// gives (MergeQueryResults).
+QueryResult RunClusterSearch(const Database& db, const FeatureSet& query,
+                             const QueryOptions& options, const QueryContext& context,
+                             const std::vector<uint32_t>* among, const Retriever& retriever,
+                             const Timer& clock) {
+  if (context.clusters == nullptr) {
+    PLACEDB_THROW_INVALID(
+        "cluster search needs the database's clusters (open it with "
+        "PlaceDatabase::Open)");
+  }
+  const ClusterSet& clusters = *context.clusters;
+  PLACEDB_CHECK(clusters.size() == 0 || db.size() > 0, "clusters of another database");
+  int c = -1;
+  if (options.prior.keyframe_id != 0) {
+    const int index = db.IndexOfId(options.prior.keyframe_id);
+    if (index >= 0) c = clusters.ClusterOf(static_cast<uint32_t>(index));
+  } else if (options.prior.pose) {
+    c = clusters.Nearest(options.prior.pose->translation);
+  }
+  if (c < 0) {
+    QueryResult r = RunStages(db, query, options, context, among, retriever, clock);
+    r.search = "cluster+global";
+    return r;
+  }
+  const QueryOptions part = options.ForPartition();
+  std::vector<uint32_t> local = clusters.KeyframesAround(c, options.retrieval.cluster_hops);
+  if (among != nullptr) {
+    std::vector<uint32_t> both;
+    std::set_intersection(local.begin(), local.end(), among->begin(), among->end(),
+                          std::back_inserter(both));
+    local = std::move(both);
+  }
+  std::vector<QueryResult> parts;
+  parts.push_back(RunStages(db, query, part, context, &local, retriever, clock));
+  const double weak = options.retrieval.cluster_fallback_score > 0.0
+                          ? options.retrieval.cluster_fallback_score
+                          : options.min_score;
+  const QueryResult& first = parts.front();
+  const bool strong = !first.ranked.empty() && first.ranked.front().score >= weak;
+  bool fallback = false;
+  if (!strong && !first.deadline_reached) {
+    const std::vector<uint32_t> rest = Complement(db.size(), among, local);
+    if (!rest.empty()) {
+      parts.push_back(RunStages(db, query, part, context, &rest, retriever, clock));
+      fallback = true;
+    }
+  }
+  QueryResult r = MergeQueryResults(parts, options);
+  // The stages ran one after the other.
+  StageTimes sum;
+  for (const QueryResult& p : parts) {
+    sum.retrieve_ms += p.times.retrieve_ms;
+    sum.match_ms += p.times.match_ms;
+    sum.verify_ms += p.times.verify_ms;
+  }
+  r.times = sum;
+  r.search = fallback ? "cluster+fallback" : "cluster";
+  r.cluster = c;
+  return r;
+}
+
+}  // namespace
+
+QueryResult QueryDatabase(const Database& db, const FeatureSet& query, const QueryOptions& options,
+                          const QueryContext& context) {
+  PLACEDB_CHECK_OPTIONS(options);
+  ValidateQueryFeatures(query, db);
+  PLACEDB_CHECK(db.has_features(), "the database was opened as a keyframe table, without features");
+  const Timer clock;
+  std::vector<uint32_t> among;
+  if (context.among != nullptr) {
+    among = *context.among;
+    std::sort(among.begin(), among.end());
+    among.erase(std::unique(among.begin(), among.end()), among.end());
+    if (!among.empty() && among.back() >= db.size()) {
+      PLACEDB_THROW_INVALID("keyframe index ", among.back(), " is out of range (the database has ",
+                            db.size(), " keyframes)");
+    }
+  }
+  std::unique_ptr<Retriever> own_retriever;
+  const Retriever* retriever = context.retriever;
+  if (retriever == nullptr) {
+    own_retriever = Retriever::Create(options.retrieval, db, context.bow);
+    retriever = own_retriever.get();
+  }
+  const std::vector<uint32_t>* restriction = context.among ? &among : nullptr;
+  QueryResult result =
+      options.retrieval.method == RetrievalMethod::kCluster
+          ? RunClusterSearch(db, query, options, context, restriction, *retriever, clock)
+          : RunStages(db, query, options, context, restriction, *retriever, clock);
+  result.times.total_ms = clock.ElapsedMs();
   return result;
 }
 
@@ -352,6 +510,7 @@ QueryResult MergeQueryResults(const std::vector<QueryResult>& parts, const Query
     merged.times.match_ms = std::max(merged.times.match_ms, p.times.match_ms);
     merged.times.verify_ms = std::max(merged.times.verify_ms, p.times.verify_ms);
     merged.times.total_ms = std::max(merged.times.total_ms, p.times.total_ms);
+    merged.deadline_reached = merged.deadline_reached || p.deadline_reached;
     for (const RankedKeyframe& r : p.ranked) {
       if (!seen.insert(r.keyframe_id).second) {
         PLACEDB_THROW_INVALID("keyframe ", r.keyframe_id,
@@ -377,6 +536,11 @@ QueryResult MergeQueryResults(const std::vector<QueryResult>& parts, const Query
   if (all.size() > static_cast<size_t>(options.top_k)) all.resize(options.top_k);
   merged.ranked = std::move(all);
   Decide(&merged, options);
+  merged.coverage = CoverageOf(merged);
+  if (!parts.empty()) {
+    merged.search = parts.front().search;
+    merged.cluster = parts.front().cluster;
+  }
   return merged;
 }
 

@@ -27,7 +27,21 @@
 
 namespace placedb {
 
+class ClusterSet;
+class GrowingBowIndex;
 class ThreadPool;
+
+// Where the robot probably is, for cluster search: the last answer's
+// keyframe, or a pose in the map frame (the keyframe wins when both are set).
+struct QueryPrior {
+  // Id of a keyframe near the query (the previous frame's answer); 0: none.
+  // Range [0, 2^31). An id not in the database is no prior.
+  int32_t keyframe_id = 0;
+  std::optional<Pose> pose;
+
+  bool empty() const { return keyframe_id == 0 && !pose; }
+  std::string Check() const;
+};
 
 struct QueryOptions {
   // Length of the ranked list returned. Range [1, 10000]. Default 5.
@@ -45,6 +59,14 @@ struct QueryOptions {
   // verified, else matches) is at least this; else "no match / new place".
   // Range [0, 100000]. Default 12.
   double min_score = 12.0;
+  // Time budget of retrieve + match + verify, in milliseconds; 0 = none.
+  // Candidates are examined best prior first until it runs out (at least
+  // one is examined and verified), so a query is late by at most one
+  // candidate's work; the result's coverage says how much was searched.
+  // Range [0, 1e7]. Default 0.
+  double deadline_ms = 0.0;
+  // For cluster search: where the robot probably is. Default none.
+  QueryPrior prior;
 
   std::string Check() const;
   // The options a partition (thread, process, worker node) runs with so that
@@ -89,6 +111,17 @@ struct QueryResult {
   size_t num_keyframes = 0;  // in the database (partition, restriction) searched
   size_t num_examined = 0;   // keyframes the match stage compared
   size_t num_verified = 0;   // keyframes the verify stage ran on
+  // num_examined / num_keyframes (0 for an empty database).
+  double coverage = 0.0;
+  // The deadline stopped the match or verify stage early.
+  bool deadline_reached = false;
+  // How the candidates were found: "exhaustive", "bow", "cluster" (the
+  // prior's clusters were enough), "cluster+fallback" (the local answer was
+  // weak and the rest of the database was searched too), "cluster+global"
+  // (no usable prior: a global search).
+  std::string search = "exhaustive";
+  // cluster search: the prior's cluster, -1 when none.
+  int cluster = -1;
   StageTimes times;
 
   // The answer, or nullptr for "no match".
@@ -116,6 +149,11 @@ struct QueryContext {
   const std::vector<uint32_t>* among = nullptr;
   // Matching and verification spread over this pool; nullptr: this thread.
   ThreadPool* pool = nullptr;
+  // The database's bag-of-words index (bow search; cluster search uses it
+  // within and beyond the clusters when given); nullptr: none.
+  const GrowingBowIndex* bow = nullptr;
+  // Spatial-locality clusters (cluster search needs them); nullptr: none.
+  const ClusterSet* clusters = nullptr;
   // Folder the keyframes' stored images are relative to ("": left relative).
   std::string image_dir;
 };

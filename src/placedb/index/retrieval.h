@@ -1,7 +1,11 @@
 // The retrieve stage: which keyframes a query examines, in which order.
-// Exhaustive search (every keyframe, the paper's method) is the one retriever
-// today; a bag-of-words index and spatial clusters plug in behind the same
-// interface and factory.
+//   exhaustive  every keyframe (the paper's method), in index order;
+//   bow         the best keyframes by bag-of-words score (bow_index.h), best first;
+//   cluster     the keyframes of the prior's spatial-locality cluster and its
+//               neighbours (clusters.h; the paper's future work), falling back
+//               to a global search when the local answer is weak; the two
+//               stages are run by QueryDatabase (query.h), each retrieving
+//               through bow or exhaustive search.
 #pragma once
 
 #include <cstdint>
@@ -14,8 +18,10 @@
 
 namespace placedb {
 
-enum class RetrievalMethod { kExhaustive };
-// "exhaustive".
+class GrowingBowIndex;
+
+enum class RetrievalMethod { kExhaustive, kBow, kCluster };
+// "exhaustive", "bow", "cluster".
 const char* RetrievalMethodName(RetrievalMethod method);
 // Parses a name; throws std::invalid_argument naming the known ones.
 RetrievalMethod ParseRetrievalMethod(const std::string& name);
@@ -23,6 +29,16 @@ RetrievalMethod ParseRetrievalMethod(const std::string& name);
 struct RetrievalOptions {
   // How candidates are chosen. Default exhaustive.
   RetrievalMethod method = RetrievalMethod::kExhaustive;
+  // bow (and cluster over a database with a BoW index): keyframes passed on
+  // to matching, best bag-of-words score first. Range [1, 100000]. Default 40.
+  int bow_candidates = 40;
+  // cluster: the prior's cluster and its neighbours up to this many hops of
+  // the neighbour graph are searched first. Range [0, 64]. Default 1.
+  int cluster_hops = 1;
+  // cluster: a local answer whose score is below this falls back to a global
+  // search (a local "no match" always does). Range [0, 100000]; 0 = the
+  // query's min_score. Default 0.
+  double cluster_fallback_score = 0.0;
 
   std::string Check() const;
 };
@@ -44,8 +60,11 @@ class Retriever {
   virtual std::vector<Candidate> Retrieve(const Database& db, const FeatureSet& query,
                                           const std::vector<uint32_t>* among) const = 0;
 
-  // The retriever for `options` over `db` (an index may be prepared here).
-  static std::unique_ptr<Retriever> Create(const RetrievalOptions& options, const Database& db);
+  // The retriever for `options` over `db`. bow needs `bow`, the database's
+  // index (std::invalid_argument naming the fix when it is nullptr). cluster
+  // retrieves through bow when `bow` is given, else exhaustively.
+  static std::unique_ptr<Retriever> Create(const RetrievalOptions& options, const Database& db,
+                                           const GrowingBowIndex* bow = nullptr);
 };
 
 }  // namespace placedb

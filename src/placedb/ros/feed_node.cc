@@ -133,23 +133,14 @@ int main(int argc, char** argv) {
           ros::spinOnce();
           pace.sleep();
         } else {
-          const ros::WallTime until =
-              ros::WallTime::now() + ros::WallDuration(answer_timeout_ms / 1000.0);
-          while (ros::ok() && !(have_answer && answered >= seq) && ros::WallTime::now() < until) {
-            ros::spinOnce();
-            ros::WallDuration(0.0002).sleep();
-          }
+          wait_answer(seq, ros::WallTime::now() + ros::WallDuration(answer_timeout_ms / 1000.0));
         }
         ++seq;
       }
     }
     // Give the last frames' answers a moment before the feed goes away.
-    const ros::WallTime until =
-        ros::WallTime::now() + ros::WallDuration(answer_timeout_ms / 1000.0);
-    while (ros::ok() && seq > 0 && !(have_answer && answered >= seq - 1) &&
-           ros::WallTime::now() < until) {
-      ros::spinOnce();
-      ros::WallDuration(0.001).sleep();
+    if (seq > 0) {
+      wait_answer(seq - 1, ros::WallTime::now() + ros::WallDuration(answer_timeout_ms / 1000.0));
     }
     ROS_INFO("placedb_feed: published %lu frames", static_cast<unsigned long>(seq));
   } catch (const std::exception& e) {

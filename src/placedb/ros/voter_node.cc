@@ -156,7 +156,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--answers-file", answers_file,
                  "also append every answer to this file as a JSON line");
-  query.Add(&app);
+  query.Add(&app, /*for_queries=*/false);
   int code = 0;
   if (!placedb::ros_node::Init(
           &argc, argv, [] { return std::string("placedb_voter"); }, app, &code))

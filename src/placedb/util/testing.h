@@ -20,13 +20,16 @@ namespace placedb {
 namespace testing_util {
 
 // A fresh directory under the system temp dir, removed with its contents.
+// Named after the running test (or "suite" when made in a SetUpTestSuite).
 class TempDir {
  public:
   TempDir() {
     const ::testing::TestInfo* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ = std::filesystem::temp_directory_path() /
-            ("placedb_test_" + std::to_string(getpid()) + "_" + info->test_suite_name() + "_" +
-             info->name() + "_" + std::to_string(counter_++));
+    const std::string test =
+        info ? std::string(info->test_suite_name()) + "_" + info->name() : std::string("suite");
+    path_ =
+        std::filesystem::temp_directory_path() / ("placedb_test_" + std::to_string(getpid()) + "_" +
+                                                  test + "_" + std::to_string(counter_++));
     std::filesystem::remove_all(path_);
     std::filesystem::create_directories(path_);
   }

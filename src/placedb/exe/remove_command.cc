@@ -1,0 +1,52 @@
+// placedb remove: take keyframes out of a database and save it in place
+// crash-safely.
+#include <fmt/format.h>
+
+#include "placedb/exe/cli.h"
+#include "placedb/util/check.h"
+
+namespace placedb {
+namespace cli {
+namespace {
+
+class RemoveCommand : public Command {
+ public:
+  CLI::App* Register(CLI::App& app) override {
+    auto* cmd = app.add_subcommand("remove", "remove keyframes from a database and save it");
+    db_.Add(cmd, "");
+    cmd->add_option("--ids", ids_, "keyframe ids to remove, e.g. 3,4,17")
+        ->required()
+        ->delimiter(',');
+    cmd->add_flag("--ignore-missing", ignore_missing_,
+                  "ids that are not keyframes are not an error");
+    return cmd;
+  }
+
+  int Run() override {
+    PlaceDatabase db = db_.Open();
+    for (const int32_t id : ids_) {
+      if (db.FindKeyframe(id) == nullptr && !ignore_missing_) {
+        PLACEDB_THROW_INVALID("keyframe ", id, " is not in ", db_.dir,
+                              " (--ignore-missing to skip such ids)");
+      }
+    }
+    size_t removed = 0;
+    for (const int32_t id : ids_) removed += db.Remove(id);
+    db.Save();
+    fmt::print("removed       {} keyframes\n", removed);
+    fmt::print("database      {} now has {} keyframes\n", db_.dir, db.size());
+    return 0;
+  }
+
+ private:
+  DatabaseArgs db_;
+  std::vector<int32_t> ids_;
+  bool ignore_missing_ = false;
+};
+
+}  // namespace
+
+std::unique_ptr<Command> MakeRemoveCommand() { return std::make_unique<RemoveCommand>(); }
+
+}  // namespace cli
+}  // namespace placedb

@@ -1,0 +1,44 @@
+// A bag-of-words index that grows with online mapping: the stored BowIndex
+// (used in place from its file) for the keyframes it was built on, and the
+// bags of words of the keyframes added since, searched as one. A keyframe's
+// score is BowScore with the query either way (the same terms in the same
+// order), so a database saved and reopened after online additions retrieves
+// exactly the same candidates.
+#pragma once
+
+#include <cstdint>
+#include <unordered_map>
+#include <vector>
+
+#include "placedb/index/bow_index.h"
+
+namespace placedb {
+
+class GrowingBowIndex {
+ public:
+  explicit GrowingBowIndex(BowIndex base) : base_(std::move(base)) {}
+
+  const BowIndex& base() const { return base_; }
+  const Vocabulary& vocabulary() const { return base_.vocabulary(); }
+  // Keyframes: the stored index's, then the added ones (database order).
+  size_t size() const { return base_.size() + added_.size(); }
+  size_t num_added() const { return added_.size(); }
+
+  BowVector Transform(const DescriptorBlock& rows) const { return base_.Transform(rows); }
+  // The bag of words of the next keyframe (index size()).
+  void Append(BowVector words);
+
+  // The best `max_results` keyframes by BowScore with `query`, best first
+  // (ties: the lower index), over the stored and the added keyframes; with
+  // `among` (sorted, unique indices < size()), only those.
+  std::vector<BowIndex::Scored> Query(const BowVector& query, size_t max_results,
+                                      const std::vector<uint32_t>* among) const;
+
+ private:
+  BowIndex base_;
+  std::vector<BowVector> added_;
+  // word -> the added keyframes (offsets into added_) that have it, ascending.
+  std::unordered_map<uint32_t, std::vector<uint32_t>> added_postings_;
+};
+
+}  // namespace placedb

@@ -1,0 +1,300 @@
+// The retrieve stage's methods: spatial-locality clusters, bag-of-words
+// search, cluster search with its fallback, and the deadline.
+#include "placedb/index/retrieval.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <opencv2/imgcodecs.hpp>
+#include <set>
+
+#include "placedb/dataset/image_folder.h"
+#include "placedb/dataset/match_truth.h"
+#include "placedb/index/clusters.h"
+#include "placedb/index/place_database.h"
+#include "placedb/util/testing.h"
+
+namespace placedb {
+namespace {
+using testing_util::RtabmapImage;
+using testing_util::ThrowsWith;
+
+const std::string kImages = PLACEDB_DATA_DIR "/rtabmap_loop/images";
+const std::string kTruth = PLACEDB_DATA_DIR "/rtabmap_loop/ground_truth.csv";
+
+// A database of keyframes at these positions (no features), in this order.
+Database DatabaseAt(const std::vector<Eigen::Vector3d>& positions, bool with_poses = true) {
+  Database db(FeatureType::kOrb, 32);
+  FeatureSet none;
+  none.descriptors = cv::Mat(0, 32, CV_8U);
+  for (size_t i = 0; i < positions.size(); ++i) {
+    Keyframe k;
+    k.id = static_cast<int32_t>(i + 1);
+    k.stored_size = cv::Size(64, 48);
+    k.crop = cv::Rect(0, 0, 64, 48);
+    if (with_poses) {
+      Pose p;
+      p.translation = positions[i];
+      k.pose = p;
+    }
+    db.AddKeyframe(k, none);
+  }
+  return db;
+}
+
+// A robot drives 0 -> 10 m along x and back: the way back joins the way
+// out's clusters (spatial locality, not time), neighbours follow the path.
+TEST(ClusterSetTest, PosesGroupByPlaceAndLinkAlongThePath) {
+  std::vector<Eigen::Vector3d> path;
+  for (int i = 0; i <= 50; ++i) path.emplace_back(0.2 * i, 0.0, 0.0);
+  for (int i = 50; i >= 0; --i) path.emplace_back(0.2 * i, 0.05, 0.0);
+  const Database db = DatabaseAt(path);
+  ClusterOptions options;
+  options.radius_m = 1.0;
+  const ClusterSet set = ClusterSet::Make(db, options);
+  ASSERT_TRUE(set.by_pose());
+  // Seeds every ~1.2 m along 10 m: far fewer clusters than keyframes.
+  EXPECT_GE(set.size(), 5u);
+  EXPECT_LE(set.size(), 11u);
+  size_t members = 0;
+  for (size_t c = 0; c < set.size(); ++c) {
+    members += set.Members(static_cast<int>(c)).size();
+    EXPECT_TRUE(std::is_sorted(set.Members(static_cast<int>(c)).begin(),
+                               set.Members(static_cast<int>(c)).end()));
+  }
+  EXPECT_EQ(members, db.size());
+  // The way back seeds no cluster of its own: it joins the way out's, each
+  // keyframe the cluster of its place on the way out or a neighbour of it.
+  int way_out = 0;
+  for (uint32_t i = 0; i <= 50; ++i) way_out = std::max(way_out, set.ClusterOf(i));
+  EXPECT_EQ(static_cast<size_t>(way_out) + 1, set.size());
+  for (uint32_t i = 0; i <= 50; ++i) {
+    const int out = set.ClusterOf(i), back = set.ClusterOf(101 - i);
+    const auto& nb = set.Neighbours(out);
+    EXPECT_TRUE(out == back || std::binary_search(nb.begin(), nb.end(), back)) << "keyframe " << i;
+  }
+  // Every keyframe is within the radius of its cluster's seed, and
+  // consecutive keyframes are in the same or neighbouring clusters.
+  for (uint32_t i = 0; i < db.size(); ++i) {
+    const int c = set.ClusterOf(i);
+    const uint32_t seed = set.Members(c).front();
+    EXPECT_LE((db.keyframe(i).pose->translation - db.keyframe(seed).pose->translation).norm(),
+              1.0 + 1e-9);
+    if (i > 0 && set.ClusterOf(i - 1) != c) {
+      const auto& nb = set.Neighbours(c);
+      EXPECT_TRUE(std::binary_search(nb.begin(), nb.end(), set.ClusterOf(i - 1)));
+    }
+  }
+  // The ends of the corridor are not neighbours; hops widen the search.
+  const int start = set.ClusterOf(0), end = set.ClusterOf(50);
+  EXPECT_FALSE(std::binary_search(set.Neighbours(start).begin(), set.Neighbours(start).end(), end));
+  EXPECT_EQ(set.Around(start, 0), std::vector<int>{start});
+  EXPECT_GT(set.Around(start, 2).size(), set.Around(start, 1).size());
+  EXPECT_EQ(set.Around(start, 100).size(), set.size());
+  EXPECT_EQ(set.KeyframesAround(start, 100).size(), db.size());
+  EXPECT_EQ(set.Nearest(Eigen::Vector3d(0.1, 0.0, 0.0)), start);
+  EXPECT_EQ(set.Nearest(Eigen::Vector3d(10.2, 0.0, 0.0)), end);
+}
+
+TEST(ClusterSetTest, WithoutPosesKeyframesGroupByTime) {
+  const Database db = DatabaseAt(std::vector<Eigen::Vector3d>(23, Eigen::Vector3d::Zero()), false);
+  ClusterOptions options;
+  options.time_keyframes = 5;
+  const ClusterSet set = ClusterSet::Make(db, options);
+  EXPECT_FALSE(set.by_pose());
+  ASSERT_EQ(set.size(), 5u);
+  EXPECT_EQ(set.Members(4), (std::vector<uint32_t>{20, 21, 22}));
+  EXPECT_EQ(set.Neighbours(2), (std::vector<int>{1, 3}));
+  EXPECT_EQ(set.Nearest(Eigen::Vector3d::Zero()), -1);
+  EXPECT_EQ(set.KeyframesAround(0, 1).size(), 10u);
+}
+
+TEST(ClusterSetTest, OptionsAreChecked) {
+  ClusterOptions o;
+  o.radius_m = 0.0;
+  EXPECT_FALSE(o.Check().empty());
+  o.radius_m = std::nan("");
+  EXPECT_FALSE(o.Check().empty());
+  o = ClusterOptions();
+  o.time_keyframes = 0;
+  EXPECT_FALSE(o.Check().empty());
+  RetrievalOptions r;
+  r.bow_candidates = 0;
+  EXPECT_FALSE(r.Check().empty());
+  r = RetrievalOptions();
+  r.cluster_hops = 65;
+  EXPECT_FALSE(r.Check().empty());
+  QueryOptions q;
+  q.deadline_ms = -1.0;
+  EXPECT_FALSE(q.Check().empty());
+  q = QueryOptions();
+  q.prior.keyframe_id = -3;
+  EXPECT_FALSE(q.Check().empty());
+  EXPECT_EQ(ParseRetrievalMethod("bow"), RetrievalMethod::kBow);
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([] { ParseRetrievalMethod("dbow"); },
+                                                "exhaustive, bow or cluster"));
+}
+
+// rtabmap 1..40 with a bag-of-words index (a small vocabulary: 40 images).
+class SearchTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    tmp_ = new testing_util::TempDir();
+    BuildOptions options;
+    options.threads = 2;
+    options.progress = false;
+    options.store_images = false;
+    options.index = IndexKind::kBow;
+    options.vocabulary.depth = 3;
+    BuildDatabase(ListImageFolder(kImages, 1, 40), options, Dir(), "rtabmap 1..40");
+    options.index = IndexKind::kNone;
+    BuildDatabase(ListImageFolder(kImages, 1, 40), options, PlainDir(), "rtabmap 1..40");
+    queries_ = new std::vector<FeatureSet>;
+    const PlaceDatabase db = PlaceDatabase::Open(Dir());
+    for (int id = 41; id <= 84; ++id) queries_->push_back(db.Extract(cv::imread(RtabmapImage(id))));
+  }
+  static void TearDownTestSuite() {
+    delete tmp_;
+    delete queries_;
+  }
+  static std::string Dir() { return tmp_->Path("bow"); }
+  static std::string PlainDir() { return tmp_->Path("plain"); }
+  static const FeatureSet& Features(int id) { return (*queries_)[id - 41]; }
+
+  // Recall@1 over 41..84 (every query has a true match in 1..40).
+  static double RecallAt1(const PlaceDatabase& db, QueryOptions options, bool sequence) {
+    const MatchTruth truth = ReadMatchTruth(kTruth);
+    int correct = 0;
+    for (int id = 41; id <= 84; ++id) {
+      const QueryResult r = db.Query(Features(id), options);
+      const auto it = truth.find(id);
+      if (!r.ranked.empty() && it != truth.end() &&
+          std::count(it->second.begin(), it->second.end(), r.ranked[0].keyframe_id) > 0) {
+        ++correct;
+      }
+      if (sequence) options.prior.keyframe_id = r.best() ? r.best()->keyframe_id : 0;
+    }
+    return correct / 44.0;
+  }
+
+  static testing_util::TempDir* tmp_;
+  static std::vector<FeatureSet>* queries_;
+};
+testing_util::TempDir* SearchTest::tmp_ = nullptr;
+std::vector<FeatureSet>* SearchTest::queries_ = nullptr;
+
+TEST_F(SearchTest, BowFindsWhatExhaustiveSearchFinds) {
+  const PlaceDatabase db = PlaceDatabase::Open(Dir());
+  ASSERT_NE(db.bow_index(), nullptr);
+  QueryOptions exhaustive, bow;
+  bow.retrieval.method = RetrievalMethod::kBow;
+  bow.retrieval.bow_candidates = 10;
+  const double r_exhaustive = RecallAt1(db, exhaustive, false);
+  const double r_bow = RecallAt1(db, bow, false);
+  EXPECT_GE(r_exhaustive, 0.95);
+  EXPECT_GE(r_bow, r_exhaustive - 0.02) << "exhaustive " << r_exhaustive;
+  const QueryResult r = db.Query(Features(42), bow);
+  EXPECT_EQ(r.search, "bow");
+  EXPECT_EQ(r.num_examined, 10u);
+  EXPECT_DOUBLE_EQ(r.coverage, 10.0 / 40.0);
+  // Enough candidates: bow examines everything and answers as exhaustive.
+  bow.retrieval.bow_candidates = 40;
+  const QueryResult all = db.Query(Features(42), bow);
+  EXPECT_EQ(all.ranked, db.Query(Features(42), exhaustive).ranked);
+}
+
+TEST_F(SearchTest, BowNeedsAnIndex) {
+  const PlaceDatabase db = PlaceDatabase::Open(PlainDir());
+  EXPECT_EQ(db.bow_index(), nullptr);
+  QueryOptions bow;
+  bow.retrieval.method = RetrievalMethod::kBow;
+  EXPECT_TRUE(
+      ThrowsWith<std::invalid_argument>([&] { db.Query(Features(42), bow); }, "--index bow"));
+}
+
+// A subset opened from a bow database rebuilds its index in memory.
+TEST_F(SearchTest, SubsetsGetTheirOwnIndex) {
+  OpenOptions open;
+  open.subset = KeyframeSubset::Partition(1, 2, PartitionScheme::kContiguous);
+  const PlaceDatabase part = PlaceDatabase::Open(Dir(), open);
+  ASSERT_NE(part.bow_index(), nullptr);
+  EXPECT_EQ(part.bow_index()->size(), part.size());
+  QueryOptions bow;
+  bow.retrieval.method = RetrievalMethod::kBow;
+  bow.retrieval.bow_candidates = 3;
+  const QueryResult r = part.Query(Features(79), bow);
+  EXPECT_EQ(r.num_examined, 3u);
+  for (const RankedKeyframe& k : r.ranked) EXPECT_GT(k.keyframe_id, 20);
+}
+
+// Cluster search (time clusters of 5): with the previous answer as prior it
+// keeps recall; without a prior it is a global search; a weak local answer
+// falls back, and the merged answer is then the whole database's.
+TEST_F(SearchTest, ClusterSearchWithPriorAndFallback) {
+  OpenOptions open;
+  open.clusters.time_keyframes = 5;
+  for (const std::string& dir : {PlainDir(), Dir()}) {
+    SCOPED_TRACE(dir);
+    const PlaceDatabase db = PlaceDatabase::Open(dir, open);
+    ASSERT_EQ(db.clusters().size(), 8u);
+    QueryOptions exhaustive, cluster;
+    cluster.retrieval.method = RetrievalMethod::kCluster;
+    const double r_exhaustive = RecallAt1(db, exhaustive, false);
+    EXPECT_GE(RecallAt1(db, cluster, true), r_exhaustive - 0.02);
+
+    const QueryResult global = db.Query(Features(42), cluster);
+    EXPECT_EQ(global.search, "cluster+global");
+    EXPECT_EQ(global.cluster, -1);
+    // 42 looks like 1..4: a prior there is enough.
+    cluster.prior.keyframe_id = 3;
+    const QueryResult local = db.Query(Features(42), cluster);
+    EXPECT_EQ(local.search, "cluster");
+    EXPECT_EQ(local.cluster, 0);
+    EXPECT_LE(local.num_examined, 10u);  // clusters 0 and 1
+    ASSERT_NE(local.best(), nullptr);
+    EXPECT_LE(local.best()->keyframe_id, 10);
+    // A prior far away (cluster 4, ids 21..25, 0 hops) is weak: fallback.
+    cluster.prior.keyframe_id = 23;
+    cluster.retrieval.cluster_hops = 0;
+    const QueryResult far = db.Query(Features(42), cluster);
+    EXPECT_EQ(far.search, "cluster+fallback");
+    if (dir == PlainDir()) {
+      EXPECT_EQ(far.num_examined, 40u);
+      EXPECT_EQ(far.ranked, db.Query(Features(42), exhaustive).ranked);
+    }
+    ASSERT_NE(far.best(), nullptr);
+    EXPECT_LE(far.best()->keyframe_id, 10);
+    // An unknown prior id is no prior.
+    cluster.prior.keyframe_id = 999;
+    EXPECT_EQ(db.Query(Features(42), cluster).search, "cluster+global");
+  }
+}
+
+// A deadline too short for anything still examines and verifies the best
+// candidate and says how little was covered; a generous one changes nothing.
+TEST_F(SearchTest, DeadlineStopsEarlyAndSaysSo) {
+  for (const int threads : {1, 2}) {
+    OpenOptions open;
+    open.threads = threads;
+    const PlaceDatabase db = PlaceDatabase::Open(Dir(), open);
+    QueryOptions options;
+    options.deadline_ms = 1e-6;
+    const QueryResult r = db.Query(Features(42), options);
+    EXPECT_TRUE(r.deadline_reached);
+    EXPECT_GE(r.num_examined, 1u);
+    EXPECT_LT(r.num_examined, 40u);
+    EXPECT_DOUBLE_EQ(r.coverage, r.num_examined / 40.0);
+    EXPECT_GE(r.num_verified, r.ranked.empty() ? 0u : 1u);
+    for (const RankedKeyframe& k : r.ranked) EXPECT_TRUE(k.verified());
+    options.deadline_ms = 1e6;
+    const QueryResult full = db.Query(Features(42), options);
+    EXPECT_FALSE(full.deadline_reached);
+    EXPECT_EQ(full.ranked, db.Query(Features(42)).ranked);
+    EXPECT_DOUBLE_EQ(full.coverage, 1.0);
+  }
+}
+
+}  // namespace
+}  // namespace placedb
