@@ -9,7 +9,7 @@ JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 # The python3 on some PATHs lacks ROS's modules: CMake is given Debian's.
 CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release -DPython3_EXECUTABLE=/usr/bin/python3
 # The tests a ThreadSanitizer pass runs (CTest label "threads").
-TSAN_TARGETS = util_test surf_test index_test eval_test distributed_test
+TSAN_TARGETS = util_test surf_test index_test bow_test eval_test distributed_test
 
 .PHONY: all deps configure build test test-release test-asan test-tsan demo bench clean
 

@@ -6,6 +6,8 @@
 #   surf_bench    our SURF (dispatched and plain) vs OpenCV SIFT and ORB
 #   placedb bench whole match stages vs the paper's BFMatcher loop
 #   ros_bench     the ROS nodes end to end vs the single-process query
+#   scale_bench   1k / 10k / 100k augmented keyframes: latency, memory, size,
+#                 open time of exhaustive, BoW and cluster search
 set -euo pipefail
 BUILD_DIR=${1:-build}
 PLACEDB="$BUILD_DIR/src/placedb/exe/placedb"
@@ -24,4 +26,7 @@ mkdir -p "$OUT"
 if [[ -x "$BUILD_DIR/bench/ros_bench" ]]; then
   "$BUILD_DIR/bench/ros_bench" --out "$OUT/ros" --json "$OUT/ros_bench.json"
 fi
+# Scale: databases of 1k, 10k and 100k keyframes (reused from an earlier run
+# with the same settings).
+"$BUILD_DIR/bench/scale_bench" --out "$OUT/scale" --json "$OUT/scale_bench.json"
 python3 scripts/readme_tables.py "$OUT" README.md

@@ -4,7 +4,8 @@
 Usage: readme_tables.py OUT_DIR README.md
 
 OUT_DIR holds match_bench.json and surf_bench.json (Google Benchmark), and
-placedb_bench_orb.json / placedb_bench_surf.json (`placedb bench --json`). Each
+placedb_bench_orb.json / placedb_bench_surf.json (`placedb bench --json`), and
+when present ros_bench.json and scale_bench.json (bench/ros_bench, bench/scale_bench). Each
 table sits in the README between `<!-- make bench: NAME -->` and
 `<!-- /make bench -->`; the text around it is left alone. The tables are also
 printed, so the run's output shows them.
@@ -108,6 +109,41 @@ def ros_table(r):
     return "\n".join(rows) + "\n\n" + note
 
 
+def scale_table(j):
+    rows = ["| keyframes | search | queries | p50 ms | p99 ms | recall@1 | place recall@1 | keyframes examined | "
+            "vs exhaustive |", "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+    for s in j["sizes"]:
+        for m in s["modes"]:
+            name = m["mode"] + (f", deadline {m['deadline_ms']:g} ms" if m["deadline_ms"] > 0 else "")
+            if m["mode"] == "exhaustive":
+                vs = f"{m['vs_popcount_limit']:.2f}× the popcount limit"
+            elif "recall_points_vs_exhaustive" in m:
+                vs = (f"{m['recall_points_vs_exhaustive']:+.1f} / {m['place_recall_points_vs_exhaustive']:+.1f} "
+                      "points")
+            else:
+                vs = ""
+            if "overshoot_p99_ms" in m:
+                vs += f"; overshoot p99 {m['overshoot_p99_ms']:.2f} ms"
+            rows.append(f"| {s['keyframes']} | {name} | {m['queries']} | {m['latency_ms']['p50']:.2f} | "
+                        f"{m['latency_ms']['p99']:.2f} | {m['recall_at_1']:.3f} | {m['place_recall_at_1']:.3f} | "
+                        f"{m['examined_mean']:.0f} | {vs} |")
+    rows += ["", "| keyframes | features (per keyframe) | build s | database MB | open ms | "
+             "memory after open MiB (increase) | popcount limit ms |", "| --- | --- | --- | --- | --- | --- | --- |"]
+    for s in j["sizes"]:
+        rows.append(f"| {s['keyframes']} | {s['features']} ({s['features_per_keyframe']:.0f}) | "
+                    f"{s['build_seconds']:.0f} | {s['database_bytes'] / 1e6:.1f} | {s['open_ms']:.1f} | "
+                    f"{s['rss_mib']:.0f} (+{s['rss_increase_mib']:.0f}) | {s['popcount_limit_ms']:.2f} |")
+    note = (f"{j['sample_images']} sample images augmented; at most {j['features_per_frame']} ORB features per "
+            f"frame (FAST threshold {j['fast_threshold']}); {j['cpus']} CPUs; queries on one thread, feature "
+            f"extraction excluded; bow examines {j['bow_candidates']} candidates. recall@1: the answer is the very "
+            "keyframe the query was made from; place recall@1: a view of the same sample image. Exhaustive search "
+            f"runs on {j['exhaustive_queries_above_1000']} of the queries above 1000 keyframes; \"vs exhaustive\" "
+            "gives the difference in recall@1 / place recall@1 on those. Popcount limit: "
+            f"{j['ns_per_distance']:.3f} ns per distance ({j['hamming_kernel']} kernel, in cache) × query features × "
+            "database features.")
+    return "\n".join(rows) + "\n\n" + note
+
+
 def main():
     out, readme = sys.argv[1], sys.argv[2]
     tables = {
@@ -118,6 +154,8 @@ def main():
     }
     if os.path.exists(os.path.join(out, "ros_bench.json")):
         tables["ros"] = ros_table(load(os.path.join(out, "ros_bench.json")))
+    if os.path.exists(os.path.join(out, "scale_bench.json")):
+        tables["scale"] = scale_table(load(os.path.join(out, "scale_bench.json")))
     text = open(readme).read()
     for name, table in tables.items():
         print(f"--- {name}\n{table}\n")

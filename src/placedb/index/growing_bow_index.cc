@@ -5,6 +5,32 @@
 #include "placedb/util/check.h"
 
 namespace placedb {
+namespace {
+
+// Best score first, ties by the lower index; the first `max_results`.
+void SortAndCut(std::vector<BowIndex::Scored>* list, size_t max_results) {
+  std::sort(list->begin(), list->end(), [](const BowIndex::Scored& a, const BowIndex::Scored& b) {
+    return a.score != b.score ? a.score > b.score : a.index < b.index;
+  });
+  if (list->size() > max_results) list->resize(max_results);
+}
+
+}  // namespace
+
+std::vector<BowIndex::Scored> GrowingBowIndex::ScoreEach(const BowVector& query, size_t max_results,
+                                                         const std::vector<uint32_t>& among) const {
+  PLACEDB_CHECK(among.empty() || among.back() < size(), "keyframe index ", among.back(),
+                " is out of range");
+  const uint32_t base = static_cast<uint32_t>(base_.size());
+  std::vector<BowIndex::Scored> out;
+  for (const uint32_t index : among) {
+    const double score =
+        BowScore(query, index < base ? base_.KeyframeVector(index) : added_[index - base]);
+    if (score > 0.0) out.push_back({index, score});
+  }
+  SortAndCut(&out, max_results);
+  return out;
+}
 
 void GrowingBowIndex::Append(BowVector words) {
   const uint32_t offset = static_cast<uint32_t>(added_.size());
@@ -15,6 +41,11 @@ void GrowingBowIndex::Append(BowVector words) {
 std::vector<BowIndex::Scored> GrowingBowIndex::Query(const BowVector& query, size_t max_results,
                                                      const std::vector<uint32_t>* among) const {
   const uint32_t base = static_cast<uint32_t>(base_.size());
+  // A few keyframes (a cluster and its neighbours) are scored one by one:
+  // cheaper than walking the query's postings over the whole database. The
+  // scores are the same either way (BowIndex::Query's are BowScore's).
+  if (among != nullptr && among->size() * kDirectScoreFactor < size())
+    return ScoreEach(query, max_results, *among);
   if (added_.empty()) return base_.Query(query, max_results, among);
   std::vector<uint32_t> base_among, added_among;
   if (among != nullptr) {
@@ -42,11 +73,7 @@ std::vector<BowIndex::Scored> GrowingBowIndex::Query(const BowVector& query, siz
     const double score = BowScore(query, added_[offset]);
     if (score > 0.0) out.push_back({index, score});
   }
-  auto better = [](const BowIndex::Scored& a, const BowIndex::Scored& b) {
-    return a.score != b.score ? a.score > b.score : a.index < b.index;
-  };
-  std::sort(out.begin(), out.end(), better);
-  if (out.size() > max_results) out.resize(max_results);
+  SortAndCut(&out, max_results);
   return out;
 }
 

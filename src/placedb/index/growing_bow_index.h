@@ -33,8 +33,16 @@ class GrowingBowIndex {
   // `among` (sorted, unique indices < size()), only those.
   std::vector<BowIndex::Scored> Query(const BowVector& query, size_t max_results,
                                       const std::vector<uint32_t>* among) const;
+  // The same for `among`, scoring each of them in full instead of walking
+  // the inverted file; Query does this when `among` is a small share of the
+  // database (a cluster and its neighbours).
+  std::vector<BowIndex::Scored> ScoreEach(const BowVector& query, size_t max_results,
+                                          const std::vector<uint32_t>& among) const;
 
  private:
+  // `among` smaller than size() / this is scored keyframe by keyframe.
+  static constexpr size_t kDirectScoreFactor = 64;
+
   BowIndex base_;
   std::vector<BowVector> added_;
   // word -> the added keyframes (offsets into added_) that have it, ascending.

@@ -205,6 +205,24 @@ TEST_F(SearchTest, BowFindsWhatExhaustiveSearchFinds) {
   EXPECT_EQ(all.ranked, db.Query(Features(42), exhaustive).ranked);
 }
 
+// Scoring a few keyframes one by one gives the inverted file's scores.
+TEST_F(SearchTest, ScoringEachKeyframeEqualsTheInvertedFile) {
+  const PlaceDatabase db = PlaceDatabase::Open(Dir());
+  const GrowingBowIndex& bow = *db.bow_index();
+  const std::vector<uint32_t> among = {0, 3, 4, 5, 17, 30, 39};
+  for (int id = 41; id <= 84; ++id) {
+    std::vector<int8_t> laplacian;
+    const BowVector q = bow.Transform(MakeDescriptorBlock(Features(id), &laplacian));
+    const auto a = bow.ScoreEach(q, 4, among);
+    const auto b = bow.base().Query(q, 4, &among);
+    ASSERT_EQ(a.size(), b.size()) << id;
+    for (size_t i = 0; i < a.size(); ++i) {
+      EXPECT_EQ(a[i].index, b[i].index) << id;
+      EXPECT_EQ(a[i].score, b[i].score) << id;
+    }
+  }
+}
+
 TEST_F(SearchTest, BowNeedsAnIndex) {
   const PlaceDatabase db = PlaceDatabase::Open(PlainDir());
   EXPECT_EQ(db.bow_index(), nullptr);
