@@ -75,12 +75,6 @@ int main(int argc, char** argv) {
           have_answer = true;
         },
         ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
-    // Waits for the next answer (or `until`), sleeping in the callback queue.
-    auto wait_answer = [&](uint64_t seq, ros::WallTime until) {
-      while (ros::ok() && !(have_answer && answered >= seq) && ros::WallTime::now() < until) {
-        ros::getGlobalCallbackQueue()->callAvailable(ros::WallDuration(0.002));
-      }
-    };
     std::ofstream log;
     if (!log_file.empty()) log.open(log_file, std::ios::app);
     // Subscribers first, or the first frames go nowhere: the workers (on the
@@ -133,14 +127,23 @@ int main(int argc, char** argv) {
           ros::spinOnce();
           pace.sleep();
         } else {
-          wait_answer(seq, ros::WallTime::now() + ros::WallDuration(answer_timeout_ms / 1000.0));
+          const ros::WallTime until =
+              ros::WallTime::now() + ros::WallDuration(answer_timeout_ms / 1000.0);
+          while (ros::ok() && !(have_answer && answered >= seq) && ros::WallTime::now() < until) {
+            ros::spinOnce();
+            ros::WallDuration(0.0002).sleep();
+          }
         }
         ++seq;
       }
     }
     // Give the last frames' answers a moment before the feed goes away.
-    if (seq > 0) {
-      wait_answer(seq - 1, ros::WallTime::now() + ros::WallDuration(answer_timeout_ms / 1000.0));
+    const ros::WallTime until =
+        ros::WallTime::now() + ros::WallDuration(answer_timeout_ms / 1000.0);
+    while (ros::ok() && seq > 0 && !(have_answer && answered >= seq - 1) &&
+           ros::WallTime::now() < until) {
+      ros::spinOnce();
+      ros::WallDuration(0.001).sleep();
     }
     ROS_INFO("placedb_feed: published %lu frames", static_cast<unsigned long>(seq));
   } catch (const std::exception& e) {
