@@ -15,6 +15,10 @@ PACKAGES=(
   libgtest-dev libgmock-dev
   libbenchmark-dev       # Google Benchmark
   python3                # demo and benchmark tables
+  python3-matplotlib     # the experiment report's charts (placedb experiment)
+  python3-numpy          # the report; the Python module's arrays
+  pybind11-dev python3-dev  # the Python module (import placedb)
+  chromium               # the report's browser test (headless)
   # ROS 1 (Debian's packages): the nodes, messages, bags, roslaunch. Not
   # needed with -DPLACEDB_WITH_ROS=OFF (PLACEDB_WITH_ROS=OFF ./install_deps.sh).
   ros:libroscpp-dev ros:libstd-msgs-dev ros:libsensor-msgs-dev ros:libgeometry-msgs-dev

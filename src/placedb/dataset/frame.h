@@ -30,6 +30,16 @@ struct Frame {
 // an empty Mat when it cannot be read or decoded.
 cv::Mat LoadFrameImage(const Frame& frame);
 
+// Frames first..last of a listing (1-based positions; last 0: to the end).
+// std::invalid_argument, naming `what` ("TUM frame", "bag frame"), for
+// first < 1, last < 0 or a range that selects nothing.
+std::vector<Frame> SelectFrameRange(std::vector<Frame> frames, int first, int last,
+                                    const std::string& what);
+
+// How a range is written in source descriptions (manifests, reports):
+// " [first..last]", " [first..]", or "" for the whole listing.
+std::string FrameRangeSuffix(int first, int last);
+
 // Sets resize_to on every frame.
 void ResizeFramesTo(std::vector<Frame>* frames, cv::Size size);
 

@@ -107,13 +107,15 @@ EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_fra
     coverage_sum += rec.result.coverage;
     report.num_deadline_reached += rec.result.deadline_reached;
     const std::vector<RankedKeyframe>& ranked = rec.result.ranked;
-    for (size_t r = 0; r < ranked.size() && r < 5; ++r) {
+    for (size_t r = 0; r < ranked.size(); ++r) {
       const Keyframe* k = db.FindKeyframe(ranked[r].keyframe_id);
       if (k != nullptr && truth.IsCorrect(q, *k)) {
-        if (r == 0) rec.correct_at_1 = true;
-        rec.correct_at_5 = true;
+        rec.first_correct_rank = static_cast<int>(r) + 1;
+        break;
       }
     }
+    rec.correct_at_1 = rec.first_correct_rank == 1;
+    rec.correct_at_5 = rec.first_correct_rank >= 1 && rec.first_correct_rank <= 5;
     ScoredAnswer answer;
     answer.has_answer = !ranked.empty();
     answer.score = ranked.empty() ? 0.0 : ranked[0].score;
@@ -207,6 +209,7 @@ nlohmann::json EvalReportToJson(const EvalReport& r) {
     e["unreadable"] = q.unreadable;
     e["correct_at_1"] = q.correct_at_1;
     e["correct_at_5"] = q.correct_at_5;
+    e["first_correct_rank"] = q.first_correct_rank;
     e["has_true_match_in_db"] = q.has_true_match_in_db;
     e["result"] = q.unreadable ? nlohmann::json(nullptr) : nlohmann::json(q.result);
     queries.push_back(e);

@@ -41,6 +41,9 @@ struct QueryRecord {
   QueryResult result;
   bool correct_at_1 = false;          // ranked[0] is a true match (whatever the decision)
   bool correct_at_5 = false;          // one of the first five is
+  // 1-based rank of the first true match in the ranked list (top_k long);
+  // 0 when none is: recall@k curves.
+  int first_correct_rank = 0;
   bool has_true_match_in_db = false;  // whether any keyframe could be right
   bool unreadable = false;
 };

@@ -7,6 +7,7 @@
 #include <iostream>
 
 #include "placedb/dataset/image_folder.h"
+#include "placedb/dataset/match_truth.h"
 #ifdef PLACEDB_WITH_ROS
 #include "placedb/ros/bag_source.h"
 #endif
@@ -51,20 +52,9 @@ std::vector<Frame> SourceArgs::Read() const {
   if (!images.empty()) {
     frames = ReadImages(images, first, last);
   } else if (!tum.empty()) {
-    if (first < 1) PLACEDB_THROW_INVALID("--first must be >= 1, got ", first);
-    if (last < 0) PLACEDB_THROW_INVALID("--last must be >= 0 (0: to the end), got ", last);
-    frames = ReadTumSequence(tum, tum_options);
-    const size_t begin = static_cast<size_t>(first - 1);
-    const size_t end =
-        last == 0 ? frames.size() : std::min(frames.size(), static_cast<size_t>(last));
-    if (begin >= frames.size() || begin >= end)
-      PLACEDB_THROW_INVALID("--first/--last select no TUM frame (", frames.size(), " listed)");
-    frames = std::vector<Frame>(frames.begin() + static_cast<ptrdiff_t>(begin),
-                                frames.begin() + static_cast<ptrdiff_t>(end));
+    frames = SelectFrameRange(ReadTumSequence(tum, tum_options), first, last, "TUM frame");
   } else if (!bag.empty()) {
 #ifdef PLACEDB_WITH_ROS
-    if (first < 1) PLACEDB_THROW_INVALID("--first must be >= 1, got ", first);
-    if (last < 0) PLACEDB_THROW_INVALID("--last must be >= 0 (0: to the end), got ", last);
     BagSourceOptions o;
     o.bag = bag;
     o.topic = topic;
@@ -76,14 +66,7 @@ std::vector<Frame> SourceArgs::Read() const {
       o.tf_parent = bag_tf.substr(0, comma);
       o.tf_child = bag_tf.substr(comma + 1);
     }
-    frames = ReadBagFrames(o);
-    const size_t begin = static_cast<size_t>(first - 1);
-    const size_t end =
-        last == 0 ? frames.size() : std::min(frames.size(), static_cast<size_t>(last));
-    if (begin >= frames.size() || begin >= end)
-      PLACEDB_THROW_INVALID("--first/--last select no bag frame (", frames.size(), " in the bag)");
-    frames = std::vector<Frame>(frames.begin() + static_cast<ptrdiff_t>(begin),
-                                frames.begin() + static_cast<ptrdiff_t>(end));
+    frames = SelectFrameRange(ReadBagFrames(o), first, last, "bag frame");
 #else
     PLACEDB_THROW_INVALID(
         "this placedb was built without ROS (-DPLACEDB_WITH_ROS=OFF): --bag is not available");
@@ -96,10 +79,7 @@ std::vector<Frame> SourceArgs::Read() const {
 }
 
 std::string SourceArgs::Describe() const {
-  std::string range;
-  if (first != 1 || last != 0) {
-    range = last == 0 ? fmt::format(" [{}..]", first) : fmt::format(" [{}..{}]", first, last);
-  }
+  const std::string range = FrameRangeSuffix(first, last);
   const std::string size = frame_size.empty() ? "" : " at " + frame_size;
   const std::string what = !images.empty() ? "images:" + images
                            : !tum.empty()  ? "tum:" + tum
@@ -122,6 +102,35 @@ cv::Size ParseSize(const std::string& text, const std::string& flag) {
   if (w < 16 || h < 16 || w > 16384 || h > 16384)
     PLACEDB_THROW_INVALID(flag, ": each side must be in [16, 16384] (got ", text, ")");
   return {w, h};
+}
+
+void TruthArgs::Add(CLI::App* cmd) {
+  cmd->add_option("--truth", csv,
+                  "CSV of true matches (query_id,keyframe ids); needed with --images, else "
+                  "poses decide");
+  cmd->add_option("--max-dist", thresholds.max_distance_m,
+                  "poses: a keyframe within this distance (m) ... (0, 1e6]")
+      ->capture_default_str();
+  cmd->add_option("--max-angle", thresholds.max_angle_deg,
+                  "... and this viewing angle (deg) of the query is correct (0, 180]")
+      ->capture_default_str();
+}
+
+GroundTruth TruthArgs::Get(const SourceArgs& source, const std::string& command) const {
+  if (!csv.empty()) return GroundTruth::FromMatchList(ReadMatchTruth(csv));
+  if (!source.images.empty()) {
+    PLACEDB_THROW_INVALID(command, " with --images needs --truth CSV (or use --tum with poses)");
+  }
+  return GroundTruth::FromPoses(thresholds);
+}
+
+void AddQuerySelectionOptions(CLI::App* cmd, EvalOptions& options) {
+  auto* queries = cmd->add_option("--queries", options.num_queries,
+                                  "number of random queries (the paper's 50) [1, 1000000]")
+                      ->capture_default_str();
+  cmd->add_flag("--all", options.all, "use every query with ground truth")->excludes(queries);
+  cmd->add_option("--seed", options.seed, "seed of the random query selection")
+      ->capture_default_str();
 }
 
 void AddThreadsOption(CLI::App* cmd, int& threads, const std::string& what) {

@@ -13,6 +13,8 @@
 
 #include "placedb/dataset/frame.h"
 #include "placedb/dataset/tum.h"
+#include "placedb/eval/evaluate.h"
+#include "placedb/eval/ground_truth.h"
 #include "placedb/feature/extractor.h"
 #include "placedb/image/feature_rich_crop.h"
 #include "placedb/index/place_database.h"
@@ -34,6 +36,7 @@ class Command {
 std::unique_ptr<Command> MakeBuildCommand();
 std::unique_ptr<Command> MakeQueryCommand();
 std::unique_ptr<Command> MakeEvalCommand();
+std::unique_ptr<Command> MakeExperimentCommand();
 std::unique_ptr<Command> MakeInfoCommand();
 std::unique_ptr<Command> MakeBenchCommand();
 std::unique_ptr<Command> MakeAddCommand();
@@ -56,6 +59,21 @@ struct SourceArgs {
   // "images:DIR [41..84]", "tum:DIR [5..]".
   std::string Describe() const;
 };
+
+// How correctness is judged: --truth CSV (a match list) or, without it, the
+// frames' poses (--max-dist, --max-angle).
+struct TruthArgs {
+  std::string csv;
+  PoseThresholds thresholds;
+
+  void Add(CLI::App* cmd);
+  // The ground truth for queries from `source`: a match list is required for
+  // an image folder (std::invalid_argument naming `command`).
+  GroundTruth Get(const SourceArgs& source, const std::string& command) const;
+};
+
+// --queries N / --all / --seed S: which validation queries.
+void AddQuerySelectionOptions(CLI::App* cmd, EvalOptions& options);
 
 // --threads T for every command: 0 = one thread per core.
 void AddThreadsOption(CLI::App* cmd, int& threads, const std::string& what);

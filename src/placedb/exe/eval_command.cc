@@ -1,7 +1,6 @@
 // placedb eval: the paper's experiment against ground truth.
 #include <fmt/format.h>
 
-#include "placedb/dataset/match_truth.h"
 #include "placedb/eval/evaluate.h"
 #include "placedb/exe/cli.h"
 #include "placedb/util/check.h"
@@ -19,21 +18,8 @@ class EvalCommand : public Command {
         "latency, size)");
     db_.Add(cmd, "threads matching and verifying each query");
     source_.Add(cmd, "query frames");
-    cmd->add_option("--truth", truth_csv_,
-                    "CSV of true matches (query_id,keyframe ids); with --images");
-    cmd->add_option("--max-dist", thresholds_.max_distance_m,
-                    "poses: a keyframe within this distance (m) ... (0, 1e6]")
-        ->capture_default_str();
-    cmd->add_option("--max-angle", thresholds_.max_angle_deg,
-                    "... and this viewing angle (deg) of the query is correct (0, 180]")
-        ->capture_default_str();
-    auto* queries = cmd->add_option("--queries", options_.num_queries,
-                                    "number of random queries (the paper's 50) [1, 1000000]")
-                        ->capture_default_str();
-    auto* all = cmd->add_flag("--all", options_.all, "use every query with ground truth");
-    all->excludes(queries);
-    cmd->add_option("--seed", options_.seed, "seed of the random query selection")
-        ->capture_default_str();
+    truth_.Add(cmd);
+    AddQuerySelectionOptions(cmd, options_);
     cmd->add_flag("--sequence", options_.sequence,
                   "replay the queries in sequence order, each with the previous answer as its "
                   "prior (for --search cluster)");
@@ -47,12 +33,7 @@ class EvalCommand : public Command {
     const QueryOptions query = query_.Get();
     const PlaceDatabase db = db_.Open();
     const std::vector<Frame> frames = source_.Read();
-    GroundTruth truth = GroundTruth::FromPoses(thresholds_);
-    if (!truth_csv_.empty()) {
-      truth = GroundTruth::FromMatchList(ReadMatchTruth(truth_csv_));
-    } else if (source_.tum.empty()) {
-      PLACEDB_THROW_INVALID("eval with --images needs --truth CSV (or use --tum with poses)");
-    }
+    const GroundTruth truth = truth_.Get(source_, "eval");
     EvalOptions options = options_;
     options.progress = !quiet_;
     const EvalReport r = Evaluate(db, frames, truth, options, query);
@@ -72,8 +53,8 @@ class EvalCommand : public Command {
   DatabaseArgs db_;
   QueryArgs query_;
   SourceArgs source_;
-  std::string truth_csv_, json_;
-  PoseThresholds thresholds_;
+  TruthArgs truth_;
+  std::string json_;
   EvalOptions options_;
   bool quiet_ = false;
 };

@@ -53,7 +53,7 @@ class CliTest : public ::testing::Test {
 TEST_F(CliTest, HelpListsEverySubcommandAndOption) {
   const CommandResult help = Placedb("--help");
   EXPECT_EQ(help.code, 0);
-  for (const char* sub : {"build", "query", "eval", "info", "bench"}) {
+  for (const char* sub : {"build", "query", "eval", "experiment", "info", "bench"}) {
     EXPECT_TRUE(Contains(help.output, sub)) << sub;
   }
   const CommandResult build_help = Placedb("build --help");
@@ -444,4 +444,49 @@ TEST_F(CliTest, SearchModesDeadlinesAndOnlineChanges) {
   EXPECT_TRUE(Contains(missing.output, "not in")) << missing.output;
   const CommandResult info = Placedb("info --db " + db);
   EXPECT_TRUE(Contains(info.output, "keyframes       39")) << info.output;
+}
+
+TEST_F(CliTest, QueryDrawsItsMatchesAndExperimentChecksItsGrid) {
+  const std::string db = Path("db");
+  ASSERT_EQ(Placedb("build --images " + kImages + " --last 12 --out " + db + " --quiet").code, 0);
+  const CommandResult drawn =
+      Placedb("query --db " + db + " --image " + kImages + "/005.jpg --draw " + Path("m.png"));
+  ASSERT_EQ(drawn.code, 0) << drawn.output;
+  EXPECT_TRUE(Contains(drawn.output, "draw          " + Path("m.png"))) << drawn.output;
+  // A PNG whose header says it is wider than the two images side by side.
+  std::ifstream png(Path("m.png"), std::ios::binary);
+  unsigned char header[24] = {};
+  png.read(reinterpret_cast<char*>(header), sizeof(header));
+  ASSERT_EQ(std::string(reinterpret_cast<char*>(header) + 1, 3), "PNG");
+  const int width = (header[16] << 24) | (header[17] << 16) | (header[18] << 8) | header[19];
+  EXPECT_GT(width, 2 * 360);
+  const CommandResult jpg =
+      Placedb("query --db " + db + " --image " + kImages + "/005.jpg --draw " + Path("m.jpg"));
+  EXPECT_EQ(jpg.code, 1);
+  EXPECT_TRUE(Contains(jpg.output, "--draw needs a .png")) << jpg.output;
+  EXPECT_FALSE(fs::exists(Path("m.jpg")));
+
+  const std::string exp = "experiment --images " + kImages + " --db-last 12 --first 41 --truth " +
+                          kTruth + " --queries 3 --no-report --quiet --out " + Path("exp");
+  for (const auto& [flags, phrase] :
+       std::vector<std::pair<std::string, std::string>>{
+           {" --resize 1,2", "--resize takes 1, 4 and 16"},
+           {" --verification maybe", "--verification takes on and off"},
+           {" --features orb,,surf", "empty item"},
+           {" --features sift", "sift"},
+           {" --crop none,none", "crops repeats"},
+           {" --pictures 99", "num_pictures"}}) {
+    const CommandResult bad = Placedb(exp + flags);
+    EXPECT_EQ(bad.code, 1) << flags;
+    EXPECT_TRUE(Contains(bad.output, phrase)) << flags << ": " << bad.output;
+    EXPECT_EQ(std::count(bad.output.begin(), bad.output.end(), '\n'), 1) << bad.output;
+  }
+  const CommandResult no_truth = Placedb("experiment --images " + kImages + " --out " + Path("e2"));
+  EXPECT_EQ(no_truth.code, 1);
+  EXPECT_TRUE(Contains(no_truth.output, "needs --truth")) << no_truth.output;
+  const CommandResult ok = Placedb(exp + " --features orb --crop chroma --resize 16 --verification on");
+  ASSERT_EQ(ok.code, 0) << ok.output;
+  EXPECT_TRUE(Contains(ok.output, "1 settings (0 finished earlier), 3 queries each")) << ok.output;
+  EXPECT_TRUE(fs::exists(Path("exp/results.json")));
+  EXPECT_FALSE(fs::exists(Path("exp/report.html")));
 }

@@ -29,6 +29,7 @@ int main(int argc, char** argv) {
   commands.push_back(cli::MakeBuildCommand());
   commands.push_back(cli::MakeQueryCommand());
   commands.push_back(cli::MakeEvalCommand());
+  commands.push_back(cli::MakeExperimentCommand());
   commands.push_back(cli::MakeInfoCommand());
   commands.push_back(cli::MakeBenchCommand());
   commands.push_back(cli::MakeAddCommand());

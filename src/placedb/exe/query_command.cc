@@ -1,14 +1,17 @@
 // placedb query: where was this image taken?
 #include <fmt/format.h>
 
+#include <filesystem>
 #include <opencv2/imgcodecs.hpp>
 
+#include "placedb/eval/pictures.h"
 #include "placedb/exe/cli.h"
 #include "placedb/index/place_database.h"
 #include "placedb/util/check.h"
 
 namespace placedb {
 namespace cli {
+namespace fs = std::filesystem;
 namespace {
 
 class QueryCommand : public Command {
@@ -19,11 +22,18 @@ class QueryCommand : public Command {
     cmd->add_option("--image", image_, "query image (a full, uncropped frame)")->required();
     query_.Add(cmd);
     cmd->add_option("--json", json_, "write the result as JSON to this file ('-': stdout)");
+    cmd->add_option("--draw", draw_,
+                    "write a PNG of the query beside its best keyframe (the best ranked when "
+                    "there is no match), the matches joined by lines: verified green, others "
+                    "amber");
     return cmd;
   }
 
   int Run() override {
     const QueryOptions options = query_.Get();
+    if (!draw_.empty() && fs::path(draw_).extension() != ".png") {
+      PLACEDB_THROW_INVALID("--draw needs a .png file name, got ", draw_);
+    }
     const PlaceDatabase db = db_.Open();
     if (db.empty()) {
       fmt::print("the database at {} is empty: no keyframes to match against\n", db_.dir);
@@ -58,6 +68,7 @@ class QueryCommand : public Command {
     fmt::print("search        {}{}, {:.1f}% of {} keyframes examined{}\n", r.search,
                r.cluster >= 0 ? fmt::format(" (cluster {})", r.cluster) : "", 100.0 * r.coverage,
                r.num_keyframes, r.deadline_reached ? ", stopped by the deadline" : "");
+    if (!draw_.empty()) Draw(db, image, r, options);
     nlohmann::json j = r;
     j["query"] = image_;
     j["database"] = db_.dir;
@@ -66,6 +77,22 @@ class QueryCommand : public Command {
   }
 
  private:
+  void Draw(const PlaceDatabase& db, const cv::Mat& image, const QueryResult& r,
+            const QueryOptions& options) const {
+    if (r.ranked.empty()) {
+      fmt::print("draw          nothing to draw: no keyframe was ranked\n");
+      return;
+    }
+    const RankedKeyframe& k = r.ranked.front();
+    const std::string caption =
+        fmt::format("{} -> keyframe {} ({}{})", fs::path(image_).filename().string(),
+                    k.keyframe_id, Describe(k), r.matched ? "" : ", below --min-score");
+    const cv::Mat picture =
+        DrawQueryMatch(db, image, db.Extract(image), k.keyframe_id, options, caption);
+    if (!cv::imwrite(draw_, picture)) PLACEDB_THROW_RUNTIME("cannot write --draw ", draw_);
+    fmt::print("draw          {}\n", draw_);
+  }
+
   static std::string Describe(const RankedKeyframe& k) {
     if (k.verified()) return fmt::format("{} inliers of {} matches", k.num_inliers, k.num_matches);
     return fmt::format("{} matches", k.num_matches);
@@ -73,7 +100,7 @@ class QueryCommand : public Command {
 
   DatabaseArgs db_;
   QueryArgs query_;
-  std::string image_, json_;
+  std::string image_, json_, draw_;
 };
 
 }  // namespace

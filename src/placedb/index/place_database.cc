@@ -218,6 +218,16 @@ QueryResult PlaceDatabase::QueryAmong(const FeatureSet& features,
   return Run(features, &keyframes, options, 0.0);
 }
 
+MatchDetail PlaceDatabase::Explain(const FeatureSet& features, int32_t keyframe_id,
+                                   const QueryOptions& options) const {
+  std::shared_lock<FairSharedMutex> lock(impl_->state);
+  const int index = impl_->db.IndexOfId(keyframe_id);
+  if (index < 0 || impl_->removed[static_cast<size_t>(index)]) {
+    PLACEDB_THROW_INVALID("no keyframe ", keyframe_id, " in the database ", impl_->dir);
+  }
+  return MatchKeyframe(impl_->db, features, static_cast<size_t>(index), options);
+}
+
 // ---- online mapping -----------------------------------------------------------
 
 namespace {

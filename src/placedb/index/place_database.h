@@ -97,6 +97,12 @@ class PlaceDatabase {
   QueryResult QueryAmong(const FeatureSet& features, const std::vector<uint32_t>& keyframes,
                          const QueryOptions& options = QueryOptions()) const;
 
+  // Why keyframe `keyframe_id` matched `features` (or did not): the match
+  // and verify stages on it alone, every match kept (MatchKeyframe). For
+  // pictures and diagnostics. std::invalid_argument for an unknown id.
+  MatchDetail Explain(const FeatureSet& features, int32_t keyframe_id,
+                      const QueryOptions& options = QueryOptions()) const;
+
   // ---- Online mapping: the robot keeps mapping while it localises ----------
   // Adds a keyframe made from `image` (8-bit gray, BGR or BGRA) as the
   // database was built: crop, resize, features, the stored PNG when the

@@ -224,6 +224,22 @@ void KeepBest(std::vector<Examined>* list, size_t keep) {
   std::sort(list->begin(), list->end(), order);
 }
 
+// The verify stage on one keyframe: the matched points (the query's in its
+// image, the keyframe's mapped back to its original image) through USAC.
+VerifyResult VerifyKeyframe(const Database& db, size_t index, const FeatureSet& query,
+                            const std::vector<cv::DMatch>& matches, const VerifyOptions& options) {
+  const Keyframe& k = db.keyframe(index);
+  const Span<cv::KeyPoint> keypoints = db.Keypoints(index);
+  std::vector<cv::Point2f> q, t;
+  q.reserve(matches.size());
+  t.reserve(matches.size());
+  for (const cv::DMatch& m : matches) {
+    q.push_back(query.keypoints[m.queryIdx].pt);
+    t.push_back(k.ToOriginal(keypoints[m.trainIdx].pt));
+  }
+  return VerifyMatches(q, t, options);
+}
+
 void Decide(QueryResult* r, const QueryOptions& options) {
   r->matched = !r->ranked.empty() && r->ranked.front().score >= options.min_score;
 }
@@ -347,15 +363,7 @@ QueryResult RunStages(const Database& db, const FeatureSet& query, const QueryOp
       stopped = true;
       return;
     }
-    const Span<cv::KeyPoint> keypoints = db.Keypoints(e.index);
-    std::vector<cv::Point2f> q, t;
-    q.reserve(e.matches.size());
-    t.reserve(e.matches.size());
-    for (const cv::DMatch& m : e.matches) {
-      q.push_back(grouped.set.keypoints[m.queryIdx].pt);
-      t.push_back(k.ToOriginal(keypoints[m.trainIdx].pt));
-    }
-    r.num_inliers = VerifyMatches(q, t, options.verify).num_inliers;
+    r.num_inliers = VerifyKeyframe(db, e.index, grouped.set, e.matches, options.verify).num_inliers;
     r.score = r.num_inliers;
   };
   if (context.pool == nullptr || ranked.size() <= 1) {
@@ -542,6 +550,37 @@ QueryResult MergeQueryResults(const std::vector<QueryResult>& parts, const Query
     merged.cluster = parts.front().cluster;
   }
   return merged;
+}
+
+MatchDetail MatchKeyframe(const Database& db, const FeatureSet& query, size_t index,
+                          const QueryOptions& options) {
+  PLACEDB_CHECK_OPTIONS(options);
+  ValidateQueryFeatures(query, db);
+  if (index >= db.size()) {
+    PLACEDB_THROW_INVALID("keyframe index ", index, " is out of range (", db.size(),
+                          " keyframes)");
+  }
+  const GroupedFeatures grouped = GroupByLaplacian(query);
+  MatchDetail d;
+  d.keyframe_id = db.keyframe(index).id;
+  MatchDescriptors(grouped.block, db.Descriptors(index), options.match, &d.matches);
+  d.query_keypoints = grouped.set.keypoints;
+  const Keyframe& k = db.keyframe(index);
+  const Span<cv::KeyPoint> keypoints = db.Keypoints(index);
+  d.keyframe_stored_points.reserve(keypoints.size());
+  d.keyframe_points.reserve(keypoints.size());
+  for (const cv::KeyPoint& kp : keypoints) {
+    d.keyframe_stored_points.push_back(kp.pt);
+    d.keyframe_points.push_back(k.ToOriginal(kp.pt));
+  }
+  if (options.verify.enabled && static_cast<int>(d.matches.size()) >= options.min_matches) {
+    VerifyResult v = VerifyKeyframe(db, index, grouped.set, d.matches, options.verify);
+    d.verified = true;
+    d.num_inliers = v.num_inliers;
+    d.inliers = v.estimated ? std::move(v.inlier_mask)
+                            : std::vector<uint8_t>(d.matches.size(), 0);
+  }
+  return d;
 }
 
 }  // namespace placedb

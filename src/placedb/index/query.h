@@ -162,6 +162,30 @@ struct QueryContext {
 QueryResult QueryDatabase(const Database& db, const FeatureSet& query, const QueryOptions& options,
                           const QueryContext& context = QueryContext());
 
+// Why a keyframe matched: the match and verify stages of a query on one
+// keyframe, with every match kept (for pictures and diagnostics).
+struct MatchDetail {
+  int32_t keyframe_id = 0;
+  // The query's keypoints, in the order the matches' queryIdx refers to
+  // (SURF: grouped by Laplacian sign, as the match stage sees them).
+  std::vector<cv::KeyPoint> query_keypoints;
+  // The keyframe's keypoints (trainIdx), in its original image and in its
+  // stored (cropped, resized) image.
+  std::vector<cv::Point2f> keyframe_points;
+  std::vector<cv::Point2f> keyframe_stored_points;
+  std::vector<cv::DMatch> matches;  // what passed the match stage
+  bool verified = false;            // the verify stage ran
+  int num_inliers = 0;
+  std::vector<uint8_t> inliers;  // one per match when verified (1: inlier)
+};
+
+// The match and verify stages of `options` on keyframe `index` of `db`
+// (verify when options.verify.enabled and at least min_matches matched): the
+// same matches and inliers a query would find for it. Throws
+// std::invalid_argument for features `db` cannot match or a bad index.
+MatchDetail MatchKeyframe(const Database& db, const FeatureSet& query, size_t index,
+                          const QueryOptions& options);
+
 // The voting step. `parts` are results of disjoint partitions of one database,
 // each computed with options.ForPartition(); the merge ranks and decides as
 // QueryDatabase on the whole database would (the same ranked list and

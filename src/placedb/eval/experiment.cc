@@ -1,0 +1,632 @@
+#include "placedb/eval/experiment.h"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cctype>
+#include <filesystem>
+#include <map>
+#include <opencv2/imgcodecs.hpp>
+#include <set>
+
+#include "placedb/eval/pictures.h"
+#include "placedb/image/feature_rich_crop.h"
+#include "placedb/image/resize.h"
+#include "placedb/index/place_database.h"
+#include "placedb/util/check.h"
+#include "placedb/util/checksum.h"
+#include "placedb/util/file_io.h"
+#include "placedb/util/options.h"
+
+#ifndef PLACEDB_PYTHON
+#define PLACEDB_PYTHON "/usr/bin/python3"
+#endif
+#ifndef PLACEDB_REPORT_SCRIPT_INSTALLED
+#define PLACEDB_REPORT_SCRIPT_INSTALLED ""
+#endif
+#ifndef PLACEDB_REPORT_SCRIPT_SOURCE
+#define PLACEDB_REPORT_SCRIPT_SOURCE ""
+#endif
+
+namespace placedb {
+namespace fs = std::filesystem;
+
+std::string ExperimentSetting::DatabaseName() const {
+  return fmt::format("{}_{}_r{}", FeatureTypeName(features), CropModeName(crop), resize);
+}
+
+std::string ExperimentSetting::Name() const {
+  return DatabaseName() + (verify ? "_verify" : "_noverify");
+}
+
+std::string ExperimentSetting::Label() const {
+  std::string feature = FeatureTypeName(features);
+  for (char& c : feature) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  return fmt::format("{} {} {} {}", feature, CropModeName(crop),
+                     resize == 1 ? std::string("1") : fmt::format("1/{}", resize),
+                     verify ? "verified" : "unverified");
+}
+
+namespace {
+template <typename T>
+std::string CheckList(const char* name, const std::vector<T>& values) {
+  if (values.empty()) return fmt::format("{} is empty", name);
+  for (size_t i = 0; i < values.size(); ++i) {
+    for (size_t j = 0; j < i; ++j) {
+      if (values[i] == values[j]) return fmt::format("{} repeats a value", name);
+    }
+  }
+  return "";
+}
+}  // namespace
+
+std::string ExperimentOptions::Check() const {
+  std::string resize_reason;
+  for (const int r : resizes) {
+    if (!IsValidAreaDivisor(r)) resize_reason = fmt::format("resizes: {} is not 1, 4 or 16", r);
+  }
+  return FirstReason({CheckList("features", features), CheckList("crops", crops),
+                      CheckList("resizes", resizes), resize_reason, CheckList("verify", verify),
+                      Nested("build", build.Check()), Nested("query", query.Check()),
+                      Nested("eval", eval.Check()),
+                      CheckRange("num_pictures", num_pictures, 0, 20),
+                      CheckRange("num_failures", num_failures, 0, 100)});
+}
+
+std::vector<ExperimentSetting> ExperimentOptions::Grid() const {
+  std::vector<ExperimentSetting> grid;
+  for (const FeatureType f : features) {
+    for (const CropMode c : crops) {
+      for (const int r : resizes) {
+        for (const bool v : verify) grid.push_back({f, c, r, v});
+      }
+    }
+  }
+  return grid;
+}
+
+nlohmann::json QueryOptionsToJson(const QueryOptions& o) {
+  return {{"top_k", o.top_k},
+          {"min_matches", o.min_matches},
+          {"min_score", o.min_score},
+          {"deadline_ms", o.deadline_ms},
+          {"retrieval",
+           {{"method", RetrievalMethodName(o.retrieval.method)},
+            {"bow_candidates", o.retrieval.bow_candidates},
+            {"cluster_hops", o.retrieval.cluster_hops},
+            {"cluster_fallback_score", o.retrieval.cluster_fallback_score}}},
+          {"match",
+           {{"ratio", o.match.ratio},
+            {"max_hamming", o.match.max_hamming},
+            {"max_l2", o.match.max_l2},
+            {"use_laplacian_sign", o.match.use_laplacian_sign},
+            {"one_to_one", o.match.one_to_one},
+            {"cross_check", o.match.cross_check}}},
+          {"verify",
+           {{"enabled", o.verify.enabled},
+            {"model", GeometricModelName(o.verify.model)},
+            {"num_candidates", o.verify.num_candidates},
+            {"max_error_px", o.verify.max_error_px},
+            {"confidence", o.verify.confidence},
+            {"max_iterations", o.verify.max_iterations},
+            {"seed", o.verify.seed}}}};
+}
+
+namespace {
+
+// What identifies a list of frames: count, id range and a checksum of ids
+// and paths.
+nlohmann::json FramesIdentity(const std::vector<Frame>& frames, const std::string& from) {
+  std::string all;
+  for (const Frame& f : frames) all += fmt::format("{}\t{}\n", f.id, f.image_path);
+  return {{"from", from},
+          {"count", frames.size()},
+          {"first_id", frames.empty() ? 0 : frames.front().id},
+          {"last_id", frames.empty() ? 0 : frames.back().id},
+          {"checksum", ChecksumHex(Checksum64(all.data(), all.size()))}};
+}
+
+BuildOptions BuildFor(const ExperimentOptions& o, const ExperimentSetting& s) {
+  BuildOptions b = o.build;
+  b.features.type = s.features;
+  b.crop = s.crop;
+  b.resize = s.resize;
+  b.overwrite = true;
+  b.progress = o.progress;
+  return b;
+}
+
+QueryOptions QueryFor(const ExperimentOptions& o, bool verify) {
+  QueryOptions q = o.query;
+  q.verify.enabled = verify;
+  return q;
+}
+
+nlohmann::json SettingJson(const ExperimentSetting& s) {
+  return {{"name", s.Name()},
+          {"label", s.Label()},
+          {"database", s.DatabaseName()},
+          {"features", FeatureTypeName(s.features)},
+          {"crop", CropModeName(s.crop)},
+          {"resize", s.resize},
+          {"verify", s.verify}};
+}
+
+nlohmann::json ReadJsonFile(const std::string& path) {
+  try {
+    return nlohmann::json::parse(ReadFileToString(path));
+  } catch (const nlohmann::json::exception& e) {
+    PLACEDB_THROW_RUNTIME(path, " is not valid JSON (", e.what(), ")");
+  }
+}
+
+// The first key whose value differs between two objects ("" when equal).
+std::string FirstDifference(const nlohmann::json& a, const nlohmann::json& b) {
+  if (!a.is_object() || !b.is_object()) return a == b ? "" : "(the whole file)";
+  std::set<std::string> keys;
+  for (auto it = a.begin(); it != a.end(); ++it) keys.insert(it.key());
+  for (auto it = b.begin(); it != b.end(); ++it) keys.insert(it.key());
+  for (const std::string& k : keys) {
+    if (!a.contains(k) || !b.contains(k) || a[k] != b[k]) return k;
+  }
+  return "";
+}
+
+// What OUT owns; --overwrite removes exactly these.
+const char* const kOwned[] = {"experiment.json", "databases", "settings", "pictures",
+                              "results.json",    "report.html", "figures"};
+
+void PrepareFolder(const std::string& out, const nlohmann::json& config, bool overwrite) {
+  const fs::path dir(out);
+  const fs::path config_path = dir / "experiment.json";
+  std::error_code ec;
+  if (fs::exists(dir, ec) && !fs::is_directory(dir, ec)) {
+    PLACEDB_THROW_INVALID("the experiment's output ", out, " exists and is not a folder");
+  }
+  if (fs::is_directory(dir, ec) && !fs::is_empty(dir, ec) && !fs::exists(config_path, ec)) {
+    PLACEDB_THROW_INVALID("the folder ", out,
+                          " is not empty and holds no experiment: choose another --out");
+  }
+  if (fs::exists(config_path, ec)) {
+    if (overwrite) {
+      for (const char* name : kOwned) fs::remove_all(dir / name);
+    } else {
+      const nlohmann::json old = ReadJsonFile(config_path.string());
+      const std::string diff = FirstDifference(old, config);
+      if (!diff.empty()) {
+        PLACEDB_THROW_INVALID("the folder ", out,
+                              " holds an experiment with other arguments (they differ in '", diff,
+                              "'): use the same arguments to resume, --overwrite to start "
+                              "afresh, or another --out");
+      }
+    }
+  }
+  fs::create_directories(dir / "settings");
+  fs::create_directories(dir / "databases");
+  fs::create_directories(dir / "pictures");
+  WriteFileAtomic(config_path.string(), config.dump(2) + "\n");
+}
+
+// The settings of one database, finished or not.
+struct DatabaseGroup {
+  ExperimentSetting first;
+  std::vector<ExperimentSetting> settings;
+};
+
+// Opens (or builds) the database of a setting.
+PlaceDatabase OpenOrBuild(const ExperimentData& data, const ExperimentOptions& options,
+                          const ExperimentSetting& s, const fs::path& out,
+                          nlohmann::json* build_json) {
+  const fs::path db_dir = out / "databases" / s.DatabaseName();
+  const fs::path build_file = out / "databases" / (s.DatabaseName() + ".build.json");
+  OpenOptions open;
+  open.expected_features = s.features;
+  if (fs::exists(build_file) && fs::exists(db_dir)) {
+    try {
+      PlaceDatabase db = PlaceDatabase::Open(db_dir.string(), open);
+      *build_json = ReadJsonFile(build_file.string());
+      return db;
+    } catch (const std::exception& e) {
+      spdlog::warn("rebuilding {}: {}", db_dir.string(), e.what());
+    }
+  }
+  fs::remove(build_file);
+  const BuildReport report =
+      BuildDatabase(data.database, BuildFor(options, s), db_dir.string(), data.database_from);
+  *build_json = BuildReportToJson(report, db_dir.string());
+  WriteFileAtomic(build_file.string(), build_json->dump(2) + "\n");
+  return PlaceDatabase::Open(db_dir.string(), open);
+}
+
+// ---- pictures ------------------------------------------------------------
+
+const nlohmann::json* FindRecord(const nlohmann::json& setting_json, int query_id) {
+  for (const nlohmann::json& q : setting_json["eval"]["queries"]) {
+    if (q["query_id"].get<int>() == query_id) return &q;
+  }
+  return nullptr;
+}
+
+// The keyframe a record answered with (ranked[0]), 0 when none.
+int32_t AnswerOf(const nlohmann::json& record) {
+  if (record["result"].is_null() || record["result"]["ranked"].empty()) return 0;
+  return record["result"]["ranked"][0]["keyframe_id"].get<int32_t>();
+}
+
+void WritePng(const fs::path& path, const cv::Mat& image) {
+  if (!cv::imwrite(path.string(), image)) PLACEDB_THROW_RUNTIME("cannot write ", path.string());
+}
+
+class PictureMaker {
+ public:
+  PictureMaker(const ExperimentData& data, const GroundTruth& truth,
+               const ExperimentOptions& options, const fs::path& out,
+               const std::map<std::string, nlohmann::json>& finished)
+      : data_(data), truth_(truth), options_(options), out_(out), finished_(finished) {
+    for (const Frame& f : data.queries) queries_[f.id] = f;
+  }
+
+  nlohmann::json Make() {
+    nlohmann::json j;
+    j["matches"] = Matches();
+    j["crops"] = Crops();
+    j["failures"] = Failures();
+    j["failure_setting"] = failure_setting_;
+    return j;
+  }
+
+ private:
+  const PlaceDatabase& Db(const ExperimentSetting& s) {
+    auto it = dbs_.find(s.DatabaseName());
+    if (it == dbs_.end()) {
+      OpenOptions open;
+      open.expected_features = s.features;
+      it = dbs_.emplace(s.DatabaseName(),
+                        PlaceDatabase::Open((out_ / "databases" / s.DatabaseName()).string(), open))
+               .first;
+    }
+    return it->second;
+  }
+
+  // The settings the pictures come from: the first feature, full size (or
+  // the first resize), verified when the grid has it; one per crop mode.
+  std::vector<ExperimentSetting> PictureSettings() const {
+    const int resize = std::find(options_.resizes.begin(), options_.resizes.end(), 1) !=
+                               options_.resizes.end()
+                           ? 1
+                           : options_.resizes.front();
+    const bool verify = std::find(options_.verify.begin(), options_.verify.end(), true) !=
+                        options_.verify.end();
+    std::vector<ExperimentSetting> out;
+    for (const CropMode c : options_.crops) out.push_back({options_.features.front(), c, resize, verify});
+    return out;
+  }
+
+  nlohmann::json Matches() {
+    nlohmann::json list = nlohmann::json::array();
+    const std::vector<ExperimentSetting> settings = PictureSettings();
+    const nlohmann::json& first = finished_.at(settings.front().Name());
+    // Answerable queries, those the crop modes disagree on first.
+    std::vector<int> differing, agreeing;
+    for (const nlohmann::json& q : first["eval"]["queries"]) {
+      if (q["unreadable"].get<bool>() || !q["has_true_match_in_db"].get<bool>()) continue;
+      const int id = q["query_id"].get<int>();
+      bool differs = false;
+      for (const ExperimentSetting& s : settings) {
+        const nlohmann::json* r = FindRecord(finished_.at(s.Name()), id);
+        if (r != nullptr && (*r)["correct_at_1"] != q["correct_at_1"]) differs = true;
+      }
+      (differs ? differing : agreeing).push_back(id);
+    }
+    std::vector<int> chosen = differing;
+    chosen.insert(chosen.end(), agreeing.begin(), agreeing.end());
+    if (chosen.size() > static_cast<size_t>(options_.num_pictures)) chosen.resize(options_.num_pictures);
+    std::sort(chosen.begin(), chosen.end());
+    const QueryOptions query = QueryFor(options_, true);
+    for (const int id : chosen) {
+      const Frame& frame = queries_.at(id);
+      const cv::Mat image = LoadFrameImage(frame);
+      if (image.empty()) continue;
+      // The chroma database's crop of each keyframe, for the matches lost.
+      const ExperimentSetting* chroma = nullptr;
+      for (const ExperimentSetting& s : settings) {
+        if (s.crop == CropMode::kChroma) chroma = &s;
+      }
+      for (const ExperimentSetting& s : settings) {
+        const nlohmann::json* r = FindRecord(finished_.at(s.Name()), id);
+        const int32_t answer = r ? AnswerOf(*r) : 0;
+        if (answer == 0) continue;
+        const PlaceDatabase& db = Db(s);
+        const MatchDetail d = db.Explain(db.Extract(image), answer, query);
+        MatchPicture p;
+        p.query = image;
+        p.keyframe = LoadKeyframePicture(db, answer, &p.keyframe_is_original);
+        if (p.keyframe.empty()) continue;
+        p.detail = &d;
+        const Keyframe* k = db.FindKeyframe(answer);
+        const bool correct = k != nullptr && truth_.IsCorrect(frame, *k);
+        int num_lost = 0;
+        if (s.crop == CropMode::kNone && chroma != nullptr && p.keyframe_is_original) {
+          const Keyframe* ck = Db(*chroma).FindKeyframe(answer);
+          if (ck != nullptr) {
+            p.region = ck->crop;
+            for (const cv::DMatch& m : d.matches) {
+              const bool lost = !ck->crop.contains(cv::Point(d.keyframe_points[m.trainIdx]));
+              p.lost.push_back(lost);
+              num_lost += lost;
+            }
+          }
+        } else if (s.crop == CropMode::kChroma && k != nullptr && p.keyframe_is_original) {
+          p.region = k->crop;
+        }
+        p.caption = fmt::format("query {} -> keyframe {} ({}), {}", id, answer,
+                                correct ? "correct" : "wrong", s.Label());
+        const std::string file = fmt::format("pictures/match_q{}_{}.png", id, CropModeName(s.crop));
+        WritePng(out_ / file, DrawMatchPicture(p));
+        list.push_back({{"query_id", id},
+                        {"setting", s.Name()},
+                        {"crop", CropModeName(s.crop)},
+                        {"keyframe_id", answer},
+                        {"correct", correct},
+                        {"num_matches", d.matches.size()},
+                        {"num_inliers", d.num_inliers},
+                        {"num_lost", num_lost},
+                        {"file", file}});
+      }
+    }
+    return list;
+  }
+
+  nlohmann::json Crops() {
+    nlohmann::json list = nlohmann::json::array();
+    const CropOptions& co = options_.build.crop_options;
+    bool have_winner = false, have_whole = false;
+    size_t looked = 0;
+    for (const Frame& f : data_.database) {
+      if ((have_winner && have_whole) || looked >= 60) break;
+      ++looked;
+      const cv::Mat image = LoadFrameImage(f);
+      if (image.empty()) continue;
+      const CropResult crop = SelectFeatureRichCrop(image, co);
+      if (crop.whole_image ? have_whole : have_winner) continue;
+      (crop.whole_image ? have_whole : have_winner) = true;
+      const std::string file = fmt::format("pictures/crop_{}.png", f.id);
+      WritePng(out_ / file, DrawCropIllustration(image, crop, co, options_.resizes));
+      nlohmann::json candidates = nlohmann::json::array();
+      for (int c = 0; c < 3; ++c) {
+        const CropCandidate& cand = crop.candidates[c];
+        candidates.push_back({{"channel", ChromaChannelName(static_cast<ChromaChannel>(c))},
+                              {"valid", cand.valid},
+                              {"roi", {cand.roi.x, cand.roi.y, cand.roi.width, cand.roi.height}},
+                              {"fast_keypoints", cand.fast_keypoints}});
+      }
+      list.push_back(
+          {{"frame_id", f.id},
+           {"file", file},
+           {"whole_image", crop.whole_image},
+           {"winner", crop.channel < 0 ? "none"
+                                       : ChromaChannelName(static_cast<ChromaChannel>(crop.channel))},
+           {"min_fast_keypoints", co.min_fast_keypoints},
+           {"candidates", candidates}});
+    }
+    return list;
+  }
+
+  nlohmann::json Failures() {
+    nlohmann::json list = nlohmann::json::array();
+    const ExperimentSetting s = PictureSettings().front();
+    failure_setting_ = s.Name();
+    const PlaceDatabase& db = Db(s);
+    for (const nlohmann::json& q : finished_.at(s.Name())["eval"]["queries"]) {
+      if (static_cast<int>(list.size()) >= options_.num_failures) break;
+      if (q["unreadable"].get<bool>()) continue;
+      const bool answerable = q["has_true_match_in_db"].get<bool>();
+      const bool matched = q["result"]["matched"].get<bool>();
+      if (answerable ? q["correct_at_1"].get<bool>() : !matched) continue;
+      const int id = q["query_id"].get<int>();
+      const Frame& frame = queries_.at(id);
+      const int32_t answer = AnswerOf(q);
+      int32_t true_id = 0;
+      for (const Keyframe& k : db.database().keyframes()) {
+        if (truth_.IsCorrect(frame, k)) {
+          true_id = k.id;
+          break;
+        }
+      }
+      bool original = true;
+      std::vector<cv::Mat> images = {LoadFrameImage(frame)};
+      std::vector<std::string> captions = {fmt::format("query {}", id)};
+      images.push_back(answer ? LoadKeyframePicture(db, answer, &original) : cv::Mat());
+      captions.push_back(answer ? fmt::format("answer: keyframe {}{}", answer,
+                                              matched ? "" : " (below the threshold)")
+                                : "no keyframe ranked");
+      images.push_back(true_id ? LoadKeyframePicture(db, true_id, &original) : cv::Mat());
+      captions.push_back(true_id ? fmt::format("a true keyframe: {}", true_id)
+                                 : "the place is not in the database");
+      const std::string file = fmt::format("pictures/failure_q{}.png", id);
+      WritePng(out_ / file, DrawImageRow(images, captions, 200));
+      list.push_back({{"query_id", id},
+                      {"answer_id", answer},
+                      {"matched", matched},
+                      {"true_id", true_id},
+                      {"file", file}});
+    }
+    return list;
+  }
+
+  const ExperimentData& data_;
+  const GroundTruth& truth_;
+  const ExperimentOptions& options_;
+  const fs::path out_;
+  const std::map<std::string, nlohmann::json>& finished_;
+  std::map<int, Frame> queries_;
+  std::map<std::string, PlaceDatabase> dbs_;
+  std::string failure_setting_;
+};
+
+}  // namespace
+
+ExperimentSummary RunExperiment(const ExperimentData& data, const GroundTruth& truth,
+                                const ExperimentOptions& options, const std::string& out_dir) {
+  PLACEDB_CHECK_OPTIONS(options);
+  if (data.database.empty()) PLACEDB_THROW_INVALID("the experiment has no database frames");
+  if (data.queries.empty()) PLACEDB_THROW_INVALID("the experiment has no query frames");
+  if (SelectQueries(data.queries, truth, options.eval).empty()) {
+    PLACEDB_THROW_INVALID("no query frame has ground truth (", truth.Describe(),
+                          "); nothing to evaluate");
+  }
+  const std::vector<ExperimentSetting> grid = options.Grid();
+  nlohmann::json names = nlohmann::json::array();
+  for (const ExperimentSetting& s : grid) names.push_back(s.Name());
+  EvalOptions eval = options.eval;
+  eval.progress = options.progress;
+  nlohmann::json build = BuildSettingsToJson(options.build);
+  for (const char* per_setting : {"features", "crop", "resize"}) build.erase(per_setting);
+  nlohmann::json query = QueryOptionsToJson(options.query);
+  query["verify"].erase("enabled");
+  const nlohmann::json config = {
+      {"format", "placedb experiment 1"},
+      {"settings", names},
+      {"build", build},
+      {"query", query},
+      {"eval",
+       {{"num_queries", eval.all ? 0 : eval.num_queries},
+        {"all", eval.all},
+        {"seed", eval.seed},
+        {"sequence", eval.sequence}}},
+      {"truth", truth.Describe()},
+      {"database_frames", FramesIdentity(data.database, data.database_from)},
+      {"query_frames", FramesIdentity(data.queries, data.queries_from)},
+      {"pictures", {{"matches", options.num_pictures}, {"failures", options.num_failures}}}};
+  const fs::path out(out_dir);
+  PrepareFolder(out_dir, config, options.overwrite);
+
+  ExperimentSummary summary;
+  summary.num_settings = static_cast<int>(grid.size());
+  std::map<std::string, nlohmann::json> finished;
+  std::vector<DatabaseGroup> groups;
+  for (const ExperimentSetting& s : grid) {
+    if (groups.empty() || groups.back().first.DatabaseName() != s.DatabaseName()) {
+      groups.push_back({s, {}});
+    }
+    groups.back().settings.push_back(s);
+  }
+  int index = 0;
+  for (const DatabaseGroup& g : groups) {
+    std::vector<ExperimentSetting> todo;
+    for (const ExperimentSetting& s : g.settings) {
+      const fs::path file = out / "settings" / (s.Name() + ".json");
+      if (fs::exists(file)) {
+        finished[s.Name()] = ReadJsonFile(file.string());
+        ++summary.num_reused;
+        ++index;
+        if (options.progress) {
+          fmt::print(stderr, "[{}/{}] {}: finished earlier\n", index, grid.size(), s.Label());
+        }
+      } else {
+        todo.push_back(s);
+      }
+    }
+    if (todo.empty()) continue;
+    nlohmann::json build_json;
+    const PlaceDatabase db = OpenOrBuild(data, options, g.first, out, &build_json);
+    for (const ExperimentSetting& s : todo) {
+      const EvalReport r = Evaluate(db, data.queries, truth, eval, QueryFor(options, s.verify));
+      nlohmann::json j = {{"setting", SettingJson(s)},
+                          {"num_keyframes", db.size()},
+                          {"build", build_json},
+                          {"eval", EvalReportToJson(r)}};
+      WriteFileAtomic((out / "settings" / (s.Name() + ".json")).string(), j.dump() + "\n");
+      finished[s.Name()] = std::move(j);
+      ++index;
+      if (options.progress) {
+        fmt::print(stderr, "[{}/{}] {}: {}/{} correct, recall@1 {:.3f}, {:.2f} ms/query\n", index,
+                   grid.size(), s.Label(), r.num_correct, r.num_queries, r.recall_at_1,
+                   r.latency_ms.mean);
+      }
+    }
+  }
+  summary.num_queries = finished.at(grid.front().Name())["eval"]["num_queries"].get<int>();
+
+  nlohmann::json pictures;
+  if (options.progress) fmt::print(stderr, "drawing the pictures\n");
+  pictures = PictureMaker(data, truth, options, out, finished).Make();
+  for (const char* kind : {"matches", "crops", "failures"}) {
+    for (const nlohmann::json& p : pictures[kind]) summary.pictures.push_back(p["file"]);
+  }
+  nlohmann::json results = config;
+  results["generated_by"] = "placedb experiment";
+  results["settings"] = nlohmann::json::array();
+  for (const ExperimentSetting& s : grid) results["settings"].push_back(finished.at(s.Name()));
+  results["pictures"] = pictures;
+  summary.results = (out / "results.json").string();
+  WriteFileAtomic(summary.results, results.dump() + "\n");
+  return summary;
+}
+
+// ---- the report -------------------------------------------------------------
+
+namespace {
+std::string FindReportScript() {
+  if (const char* env = std::getenv("PLACEDB_REPORT_SCRIPT"); env != nullptr && *env != '\0') {
+    if (!fs::is_regular_file(env)) {
+      PLACEDB_THROW_RUNTIME("PLACEDB_REPORT_SCRIPT names ", env, ", which is not a file");
+    }
+    return env;
+  }
+  for (const char* candidate : {PLACEDB_REPORT_SCRIPT_INSTALLED, PLACEDB_REPORT_SCRIPT_SOURCE}) {
+    if (*candidate != '\0' && fs::is_regular_file(candidate)) return candidate;
+  }
+  PLACEDB_THROW_RUNTIME("the report script make_report.py is not installed (looked in '",
+                        PLACEDB_REPORT_SCRIPT_INSTALLED, "' and '", PLACEDB_REPORT_SCRIPT_SOURCE,
+                        "'); set PLACEDB_REPORT_SCRIPT");
+}
+
+// Runs argv (no shell) and returns its exit status (-1: did not start).
+int RunProgram(const std::vector<std::string>& args) {
+  std::vector<char*> argv;
+  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  const pid_t pid = fork();
+  if (pid < 0) return -1;
+  if (pid == 0) {
+    execv(argv[0], argv.data());
+    _exit(127);
+  }
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0) {
+    if (errno != EINTR) return -1;
+  }
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+}  // namespace
+
+std::string WriteExperimentReport(const std::string& out_dir) {
+  const fs::path results = fs::path(out_dir) / "results.json";
+  if (!fs::is_regular_file(results)) {
+    PLACEDB_THROW_RUNTIME("no results.json in ", out_dir, ": run the experiment first");
+  }
+  const std::string script = FindReportScript();
+  const std::string python = PLACEDB_PYTHON;
+  if (access(python.c_str(), X_OK) != 0) {
+    PLACEDB_THROW_RUNTIME("the report needs ", python, " (Debian: apt-get install python3 ",
+                          "python3-matplotlib)");
+  }
+  const std::string report = (fs::path(out_dir) / "report.html").string();
+  const int status = RunProgram({python, script, out_dir});
+  if (status == 3) {
+    PLACEDB_THROW_RUNTIME("the report needs matplotlib for ", python,
+                          " (Debian: apt-get install python3-matplotlib)");
+  }
+  if (status != 0) {
+    PLACEDB_THROW_RUNTIME("the report script ", script, " failed (exit status ", status,
+                          "); results.json is complete");
+  }
+  if (!fs::is_regular_file(report)) PLACEDB_THROW_RUNTIME("the report script wrote no ", report);
+  return report;
+}
+
+}  // namespace placedb

@@ -1,0 +1,709 @@
+// The placedb Python module: a thin client of the library, as the CLI is.
+// Every call goes to the same C++ underneath (PlaceDatabase, BuildDatabase,
+// Evaluate); this file only converts arguments and results, and releases
+// the GIL while the library works.
+#include <fmt/format.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+#include <pybind11/stl/filesystem.h>
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "placedb/dataset/frame.h"
+#include "placedb/dataset/image_folder.h"
+#include "placedb/dataset/match_truth.h"
+#include "placedb/dataset/tum.h"
+#include "placedb/eval/evaluate.h"
+#include "placedb/eval/ground_truth.h"
+#include "placedb/index/builder.h"
+#include "placedb/index/place_database.h"
+#include "placedb/index/query.h"
+#include "placedb/python/conversions.h"
+#include "placedb/python/options.h"
+#include "placedb/util/version.h"
+
+namespace placedb {
+namespace python {
+namespace {
+
+namespace fs = std::filesystem;
+using OptionalPath = std::optional<fs::path>;
+using OptionalSize = std::optional<std::pair<int, int>>;
+
+void ThrowIfInvalid(const std::string& reason, const char* what) {
+  if (!reason.empty()) throw std::invalid_argument(std::string("invalid ") + what + ": " + reason);
+}
+
+// ---- frame sources: an image folder or list, or a TUM RGB-D folder --------
+// The arguments of the CLI's --images / --tum / --first / --last /
+// --frame-size, read with the same library calls (ReadImages,
+// ReadTumSequence, ResizeFramesTo) and described the same way in the
+// manifest ("images:DIR [1..20]").
+struct Source {
+  std::string images, tum;
+  int first = 1;
+  int last = 0;
+  OptionalSize frame_size;
+  TumOptions tum_options;
+};
+
+Source MakeSource(const OptionalPath& images, const OptionalPath& tum, int first, int last,
+                  const OptionalSize& frame_size, double max_time_diff,
+                  const std::string& tum_rgb_list, const std::string& tum_groundtruth) {
+  if (images && tum) throw std::invalid_argument("give images= or tum=, not both");
+  if (!images && !tum) throw std::invalid_argument("give images= (a folder or list) or tum=");
+  Source s;
+  if (images) s.images = images->string();
+  if (tum) s.tum = tum->string();
+  s.first = first;
+  s.last = last;
+  if (frame_size) {
+    const auto [w, h] = *frame_size;
+    if (w < 16 || h < 16 || w > 16384 || h > 16384) {
+      throw std::invalid_argument(
+          fmt::format("frame_size: each side must be in [16, 16384] (got ({}, {}))", w, h));
+    }
+    s.frame_size = frame_size;
+  }
+  s.tum_options.max_time_difference = max_time_diff;
+  s.tum_options.rgb_list = tum_rgb_list;
+  s.tum_options.groundtruth = tum_groundtruth;
+  ThrowIfInvalid(s.tum_options.Check(), "TUM options");
+  return s;
+}
+
+std::vector<Frame> ReadFrames(const Source& s) {
+  std::vector<Frame> frames;
+  if (!s.images.empty()) {
+    frames = ReadImages(s.images, s.first, s.last);
+  } else {
+    frames = SelectFrameRange(ReadTumSequence(s.tum, s.tum_options), s.first, s.last, "TUM frame");
+  }
+  if (s.frame_size) {
+    ResizeFramesTo(&frames, cv::Size(s.frame_size->first, s.frame_size->second));
+  }
+  return frames;
+}
+
+std::string Describe(const Source& s) {
+  const std::string range = FrameRangeSuffix(s.first, s.last);
+  const std::string size =
+      s.frame_size ? fmt::format(" at {}x{}", s.frame_size->first, s.frame_size->second) : "";
+  const std::string what = !s.images.empty() ? "images:" + s.images : "tum:" + s.tum;
+  return what + range + size;
+}
+
+// ---- results ---------------------------------------------------------------
+std::string PoseRepr(const Pose& p) {
+  const auto& t = p.translation;
+  const auto& q = p.rotation;
+  return fmt::format(
+      "Pose(translation=({:.6g}, {:.6g}, {:.6g}), quaternion_xyzw=({:.6g}, {:.6g}, "
+      "{:.6g}, {:.6g}))",
+      t.x(), t.y(), t.z(), q.x(), q.y(), q.z(), q.w());
+}
+
+py::object OptionalPose(const std::optional<Pose>& pose) {
+  return pose ? py::cast(*pose) : py::none();
+}
+
+std::string RankedRepr(const RankedKeyframe& k) {
+  return fmt::format("RankedKeyframe(keyframe_id={}, score={:g}, num_matches={}, num_inliers={})",
+                     k.keyframe_id, k.score, k.num_matches, k.num_inliers);
+}
+
+std::string ResultRepr(const QueryResult& r) {
+  std::string answer;
+  if (const RankedKeyframe* best = r.best()) {
+    answer = fmt::format("keyframe {} (score {:g}", best->keyframe_id, best->score);
+    answer += best->verified()
+                  ? fmt::format(", {} inliers of {} matches)", best->num_inliers, best->num_matches)
+                  : fmt::format(", {} matches)", best->num_matches);
+  } else if (r.ranked.empty()) {
+    answer = "no match (nothing ranked)";
+  } else {
+    answer = fmt::format("no match (best keyframe {} scores {:g})", r.ranked[0].keyframe_id,
+                         r.ranked[0].score);
+  }
+  std::string ranked;
+  for (const RankedKeyframe& k : r.ranked)
+    ranked += (ranked.empty() ? "" : ", ") + std::to_string(k.keyframe_id);
+  return fmt::format("<QueryResult {}; ranked [{}]; {} search, {:.0f}% of {} keyframes; {:.1f} ms>",
+                     answer, ranked, r.search, 100.0 * r.coverage, r.num_keyframes,
+                     r.times.total_ms);
+}
+
+// ---- the database session -------------------------------------------------
+std::unique_ptr<PlaceDatabase> OpenDatabase(const fs::path& dir, int threads,
+                                            const std::optional<std::string>& expected_features,
+                                            const OptionalSize& partition,
+                                            const std::string& partition_scheme,
+                                            const std::optional<std::vector<int32_t>>& keyframes,
+                                            double cluster_radius, int cluster_keyframes) {
+  OpenOptions o;
+  o.threads = threads;
+  if (expected_features) o.expected_features = ParseFeatureType(*expected_features);
+  if (partition && keyframes)
+    throw std::invalid_argument("give partition= or keyframes=, not both");
+  if (partition) {
+    o.subset = KeyframeSubset::Partition(partition->first, partition->second,
+                                         ParsePartitionScheme(partition_scheme));
+  } else if (keyframes) {
+    o.subset = KeyframeSubset::Ids(*keyframes);
+  }
+  o.clusters.radius_m = cluster_radius;
+  o.clusters.time_keyframes = cluster_keyframes;
+  ThrowIfInvalid(o.Check(), "open options");
+  const std::string path = dir.string();
+  py::gil_scoped_release release;
+  return std::make_unique<PlaceDatabase>(PlaceDatabase::Open(path, o));
+}
+
+// A keyframe of an open database, copied out of it.
+struct KeyframeInfo {
+  Keyframe keyframe;
+  std::string stored_image;
+  size_t num_features = 0;
+};
+
+int IndexOf(const PlaceDatabase& db, int32_t id) {
+  const int index = db.FindKeyframe(id) ? db.database().IndexOfId(id) : -1;
+  if (index < 0) throw py::key_error(fmt::format("no keyframe with id {} in the database", id));
+  return index;
+}
+
+KeyframeInfo GetKeyframe(const PlaceDatabase& db, int32_t id) {
+  const int index = IndexOf(db, id);
+  KeyframeInfo k;
+  k.keyframe = db.database().keyframe(static_cast<size_t>(index));
+  k.stored_image = db.StoredImagePath(k.keyframe);
+  k.num_features = db.database().FeatureCount(static_cast<size_t>(index));
+  return k;
+}
+
+int DescriptorColumns(const PlaceDatabase& db) {
+  const int bytes = db.database().descriptor_bytes();
+  return db.feature_type() == FeatureType::kOrb ? bytes : bytes / static_cast<int>(sizeof(float));
+}
+
+QueryResult QueryImage(const PlaceDatabase& db, const py::object& image, const py::kwargs& kwargs) {
+  const QueryOptions options = QueryOptionsFrom(kwargs);
+  const ImageInput in = ToImage(image);
+  py::gil_scoped_release release;
+  return db.Query(in.mat, options);
+}
+
+QueryResult QueryFeatures(const PlaceDatabase& db, const py::object& keypoints,
+                          const py::object& descriptors, const py::kwargs& kwargs) {
+  const QueryOptions options = QueryOptionsFrom(kwargs);
+  const FeatureInput in = ToFeatures(keypoints, descriptors);
+  py::gil_scoped_release release;
+  return db.Query(in.set, options);
+}
+
+py::tuple Extract(const PlaceDatabase& db, const py::object& image) {
+  const ImageInput in = ToImage(image);
+  FeatureSet features;
+  {
+    py::gil_scoped_release release;
+    features = db.Extract(in.mat);
+  }
+  return FromFeatures(features, DescriptorColumns(db));
+}
+
+// ---- build, evaluate -------------------------------------------------------
+py::dict Build(const fs::path& out, const OptionalPath& images, const OptionalPath& tum, int first,
+               int last, const OptionalSize& frame_size, double max_time_diff,
+               const std::string& tum_rgb_list, const std::string& tum_groundtruth,
+               const py::kwargs& settings) {
+  BuildOptions defaults;
+  defaults.progress = false;
+  const BuildOptions options = BuildOptionsFrom(settings, defaults);  // before any work
+  const Source source = MakeSource(images, tum, first, last, frame_size, max_time_diff,
+                                   tum_rgb_list, tum_groundtruth);
+  const std::string out_dir = out.string();
+  BuildReport report;
+  {
+    py::gil_scoped_release release;
+    const std::vector<Frame> frames = ReadFrames(source);
+    spdlog::info("building {} from {} frames ({} features, crop {}, resize 1/{})", out_dir,
+                 frames.size(), FeatureTypeName(options.features.type), CropModeName(options.crop),
+                 options.resize);
+    report = BuildDatabase(frames, options, out_dir, Describe(source));
+  }
+  return FromJson(BuildReportToJson(report, out_dir)).cast<py::dict>();
+}
+
+py::dict EvaluateDatabase(const PlaceDatabase& db, const OptionalPath& images,
+                          const OptionalPath& tum, int first, int last,
+                          const OptionalSize& frame_size, double max_time_diff,
+                          const std::string& tum_rgb_list, const std::string& tum_groundtruth,
+                          const OptionalPath& truth_csv, double max_dist, double max_angle,
+                          int num_queries, bool all, uint64_t seed, bool sequence, bool progress,
+                          const py::kwargs& query_options) {
+  const QueryOptions query = QueryOptionsFrom(query_options);
+  EvalOptions options;
+  options.num_queries = num_queries;
+  options.all = all;
+  options.seed = seed;
+  options.sequence = sequence;
+  options.progress = progress;
+  ThrowIfInvalid(options.Check(), "evaluation options");
+  PoseThresholds thresholds;
+  thresholds.max_distance_m = max_dist;
+  thresholds.max_angle_deg = max_angle;
+  ThrowIfInvalid(thresholds.Check(), "pose thresholds");
+  const Source source = MakeSource(images, tum, first, last, frame_size, max_time_diff,
+                                   tum_rgb_list, tum_groundtruth);
+  if (!truth_csv && !source.images.empty()) {
+    throw std::invalid_argument(
+        "evaluate with images= needs truth_csv= (a CSV of true matches), or use tum= with poses");
+  }
+  const std::string truth_path = truth_csv ? truth_csv->string() : "";
+  EvalReport report;
+  {
+    py::gil_scoped_release release;
+    const std::vector<Frame> frames = ReadFrames(source);
+    const GroundTruth truth = truth_csv ? GroundTruth::FromMatchList(ReadMatchTruth(truth_path))
+                                        : GroundTruth::FromPoses(thresholds);
+    report = Evaluate(db, frames, truth, options, query);
+  }
+  return FromJson(EvalReportToJson(report)).cast<py::dict>();
+}
+
+py::array ReadImage(const fs::path& path) {
+  Frame frame;
+  frame.image_path = path.string();
+  cv::Mat image;
+  {
+    py::gil_scoped_release release;
+    image = LoadFrameImage(frame);
+  }
+  if (image.empty()) throw std::invalid_argument("cannot read image " + frame.image_path);
+  return FromImage(image);
+}
+
+void SetLogLevel(const std::string& level) {
+  static const std::vector<std::string> names = {"trace", "debug",    "info", "warn",
+                                                 "error", "critical", "off"};
+  if (std::find(names.begin(), names.end(), level) == names.end()) {
+    throw std::invalid_argument("unknown log level '" + level +
+                                "' (expected trace, debug, info, warn, error, critical or off)");
+  }
+  spdlog::set_level(spdlog::level::from_str(level));
+}
+
+// ---- docstrings ------------------------------------------------------------
+constexpr const char* kModuleDoc =
+    R"doc(placedb: visual place recognition against a compact keyframe database.
+
+The Python face of the placedb C++ library: the same code the `placedb`
+command runs (PlaceDatabase, BuildDatabase, Evaluate), with NumPy arrays in
+and Python objects out. Long calls (open, query, extract, build, evaluate,
+read_image) release the GIL, and queries on one database may run from many
+Python threads at once.
+
+    import placedb
+    placedb.build("office.db", images="data/rtabmap_loop/images", last=20)
+    db = placedb.PlaceDatabase("office.db")
+    image = placedb.read_image("data/rtabmap_loop/images/005.jpg")  # HxWx3 BGR uint8
+    r = db.query(image, top_k=3)
+    if r.matched:
+        print(r.best.keyframe_id, r.best.score, r.best.pose)
+    kp, desc = db.extract(image)          # Nx7 float32, Nx32 uint8 (ORB)
+    same = db.query_features(kp, desc)    # the same answer as db.query(image)
+    report = placedb.evaluate(db, images="data/rtabmap_loop/images",
+                              truth_csv="data/rtabmap_loop/ground_truth.csv", num_queries=10)
+
+Images are uint8 NumPy arrays: HxW (gray), HxWx3 (BGR, OpenCV's order) or
+HxWx4 (BGRA); other strides are copied, other dtypes are a ValueError.
+
+Keypoints are Nx7 float32 rows (x, y, size, angle, response, octave,
+class_id) as cv::KeyPoint holds them; Nx2 (x, y) is accepted too (the rest
+get cv::KeyPoint's defaults; for SURF, class_id >= 0 is the positive sign of
+the Laplacian, used by matching, so pass Nx7 or laplacian_sign=False).
+Descriptors are NxD: uint8 with D = 32 for ORB, float32 with D = 64 or 128
+for SURF (float64 is converted). extract() returns exactly this layout.
+
+Errors: bad arguments raise ValueError (the library's std::invalid_argument,
+with its message), a missing or damaged database RuntimeError
+(std::runtime_error), a value of the wrong Python type or an unknown keyword
+TypeError, an unknown keyframe id KeyError.
+
+The library logs (spdlog) to the process's stderr; see set_log_level().
+)doc";
+
+constexpr const char* kQueryDoc =
+    R"doc(Where was this image taken? retrieve -> match -> verify -> decide.
+
+image: uint8 NumPy array, HxW (gray), HxWx3 (BGR) or HxWx4 (BGRA), a full
+uncropped frame. Keyword options (all of QueryOptions; see
+query_option_defaults()):
+
+{}
+Returns a QueryResult. Invalid options, images or features: ValueError.
+)doc";
+
+constexpr const char* kBuildDoc = R"doc(Builds a keyframe database at `out` (placedb build).
+
+Frames: images= (a folder of images sorted by name, or a text file listing
+image paths) or tum= (a TUM RGB-D folder: rgb.txt, groundtruth.txt), with
+first/last (1-based ids, inclusive; last=0: to the end), frame_size=(W, H)
+to simulate a smaller camera, and for TUM max_time_diff (s), tum_rgb_list,
+tum_groundtruth. The database is written atomically: a failure leaves any
+previous database at `out` intact.
+
+Keyword settings (BuildOptions; see build_setting_defaults()):
+
+{}
+Returns the build report as a dict (the CLI's --json): database,
+num_frames, num_keyframes, num_skipped, skipped, num_cropped, num_features,
+image_bytes, feature_bytes, full_png_bytes, index_bytes, seconds.
+)doc";
+
+constexpr const char* kEvaluateDoc =
+    R"doc(The paper's experiment (placedb eval): random queries against `db`, judged against ground truth.
+
+Query frames: images= with truth_csv= (a CSV of true matches,
+"query_id,keyframe ids"), or tum= with poses (a keyframe within max_dist
+metres and max_angle degrees of the query is correct; or truth_csv=).
+first/last, frame_size, max_time_diff, tum_rgb_list, tum_groundtruth as in
+build(). num_queries random queries with ground truth (all=True: every one),
+chosen by seed; sequence=True replays them in order, each with the previous
+answer as prior_keyframe (for search='cluster').
+
+Keyword query options as for PlaceDatabase.query().
+
+Returns the library's EvalReportToJson as a dict: num_queries, num_correct,
+num_correct_at_5, num_answerable, recall_at_1, recall_at_5, verified,
+precision_recall {{average_precision, recall_at_full_precision, min_score,
+at_threshold, curve}}, latency_ms and stage_ms {{mean, p50, p99, max}},
+searches, mean_coverage, num_deadline_reached, database_bytes,
+full_frames_png_bytes, reduction_vs_full, truth, and queries (each with its
+full QueryResult dict).
+)doc";
+
+}  // namespace
+}  // namespace python
+}  // namespace placedb
+
+PYBIND11_MODULE(placedb, m) {
+  using namespace placedb;          // NOLINT
+  using namespace placedb::python;  // NOLINT
+
+  m.doc() = kModuleDoc;
+  m.attr("__version__") = kPlacedbVersion;
+
+  // The library logs through spdlog's default logger: to stderr, as the CLI.
+  std::shared_ptr<spdlog::logger> logger = spdlog::get("placedb");
+  if (!logger) {
+    logger = spdlog::stderr_color_mt("placedb");
+    logger->set_pattern("%^[%l]%$ %v");
+  }
+  spdlog::set_default_logger(logger);
+
+  py::class_<Pose>(m, "Pose",
+                   "A rigid camera pose (camera-to-world, as TUM's ground truth): translation in "
+                   "metres and a unit quaternion (x, y, z, w).")
+      .def(py::init([](const py::object& t, const py::object& q) { return MakePose(t, q); }),
+           py::arg("translation"), py::arg("quaternion_xyzw") = py::make_tuple(0.0, 0.0, 0.0, 1.0),
+           "Pose(translation=(x, y, z), quaternion_xyzw=(x, y, z, w)); the quaternion is "
+           "normalised.")
+      .def_property_readonly("translation", &TranslationTuple, "(x, y, z), metres")
+      .def_property_readonly("quaternion_xyzw", &QuaternionTuple, "(x, y, z, w), unit length")
+      .def(
+          "matrix",
+          [](const Pose& p) {
+            py::array_t<double> out({4, 4});
+            auto a = out.mutable_unchecked<2>();
+            const Eigen::Matrix3d r = p.rotation.toRotationMatrix();
+            for (int i = 0; i < 4; ++i) {
+              for (int j = 0; j < 4; ++j) {
+                a(i, j) = i < 3 ? (j < 3 ? r(i, j) : p.translation[i]) : (j < 3 ? 0.0 : 1.0);
+              }
+            }
+            return out;
+          },
+          "The 4x4 homogeneous camera-to-world matrix (float64).")
+      .def(
+          "to_dict",
+          [](const Pose& p) {
+            py::dict d;
+            d["translation"] = py::list(TranslationTuple(p));
+            d["quaternion_xyzw"] = py::list(QuaternionTuple(p));
+            return d;
+          },
+          "{'translation': [x, y, z], 'quaternion_xyzw': [x, y, z, w]}, as in the library's "
+          "JSON.")
+      .def("__eq__",
+           [](const Pose& a, const Pose& b) {
+             return a.translation == b.translation && a.rotation.coeffs() == b.rotation.coeffs();
+           })
+      .def("__repr__", &PoseRepr);
+
+  py::class_<StageTimes>(m, "StageTimes", "Milliseconds spent in each stage of one query.")
+      .def_readonly("extract_ms", &StageTimes::extract_ms,
+                    "query feature extraction (0 when features were given)")
+      .def_readonly("retrieve_ms", &StageTimes::retrieve_ms)
+      .def_readonly("match_ms", &StageTimes::match_ms)
+      .def_readonly("verify_ms", &StageTimes::verify_ms)
+      .def_readonly("total_ms", &StageTimes::total_ms)
+      .def("__repr__", [](const StageTimes& t) {
+        return fmt::format(
+            "StageTimes(extract_ms={:.3f}, retrieve_ms={:.3f}, match_ms={:.3f}, verify_ms={:.3f}, "
+            "total_ms={:.3f})",
+            t.extract_ms, t.retrieve_ms, t.match_ms, t.verify_ms, t.total_ms);
+      });
+
+  py::class_<RankedKeyframe>(m, "RankedKeyframe", "One keyframe of a query's answer.")
+      .def_readonly("keyframe_id", &RankedKeyframe::keyframe_id)
+      .def_readonly("score", &RankedKeyframe::score,
+                    "what the ranking uses: num_inliers when verified, else num_matches")
+      .def_readonly("num_matches", &RankedKeyframe::num_matches,
+                    "matches that passed the match stage")
+      .def_readonly("num_inliers", &RankedKeyframe::num_inliers,
+                    "geometric inliers; -1 when not verified")
+      .def_property_readonly("verified", &RankedKeyframe::verified)
+      .def_property_readonly(
+          "pose", [](const RankedKeyframe& k) { return OptionalPose(k.pose); },
+          "the keyframe's pose (map coordinates), a Pose, or None when unknown")
+      .def_readonly("timestamp", &RankedKeyframe::timestamp,
+                    "of the keyframe's source frame, seconds; -1 when unknown")
+      .def_readonly("source", &RankedKeyframe::source, "the keyframe's source image")
+      .def_readonly("stored_image", &RankedKeyframe::stored_image,
+                    "its stored PNG (database directory joined); '' when none")
+      .def(
+          "to_dict",
+          [](const RankedKeyframe& k) {
+            const nlohmann::json j = k;
+            return FromJson(j);
+          },
+          "The library's JSON of this entry, as a dict.")
+      .def("__eq__", [](const RankedKeyframe& a, const RankedKeyframe& b) { return a == b; })
+      .def("__repr__", &RankedRepr);
+
+  py::class_<QueryResult>(m, "QueryResult",
+                          "The answer of a query: a decision (matched, best) and the ranked "
+                          "keyframes, with counts and stage times.")
+      .def_readonly("matched", &QueryResult::matched,
+                    "True when ranked[0] is the answer; False: 'no match / new place'")
+      .def_property_readonly(
+          "best",
+          [](const QueryResult& r) -> py::object {
+            if (const RankedKeyframe* b = r.best()) return py::cast(*b);
+            return py::none();
+          },
+          "the answer, a RankedKeyframe, or None for 'no match'")
+      .def_readonly("ranked", &QueryResult::ranked,
+                    "RankedKeyframes, best first, at most top_k: verified candidates by inliers, "
+                    "else by matches")
+      .def_readonly("num_query_features", &QueryResult::num_query_features)
+      .def_readonly("num_keyframes", &QueryResult::num_keyframes, "in the database searched")
+      .def_readonly("num_examined", &QueryResult::num_examined,
+                    "keyframes the match stage compared")
+      .def_readonly("num_verified", &QueryResult::num_verified, "keyframes the verify stage ran on")
+      .def_readonly("coverage", &QueryResult::coverage, "num_examined / num_keyframes, in [0, 1]")
+      .def_readonly("deadline_reached", &QueryResult::deadline_reached,
+                    "the deadline stopped the match or verify stage early")
+      .def_readonly("search", &QueryResult::search,
+                    "how candidates were found: 'exhaustive', 'bow', 'cluster', "
+                    "'cluster+fallback' or 'cluster+global'")
+      .def_readonly("cluster", &QueryResult::cluster, "cluster search: the prior's cluster, -1")
+      .def_readonly("times", &QueryResult::times, "StageTimes, milliseconds")
+      .def(
+          "to_dict",
+          [](const QueryResult& r) {
+            const nlohmann::json j = r;
+            return FromJson(j);
+          },
+          "The library's JSON of the result (what `placedb query --json` writes, without the "
+          "query and database paths), as a dict.")
+      .def(
+          "to_json",
+          [](const QueryResult& r, std::optional<int> indent) {
+            const nlohmann::json j = r;
+            return j.dump(indent ? *indent : -1, ' ', false,
+                          nlohmann::json::error_handler_t::replace);
+          },
+          py::arg("indent") = py::none(), "The library's JSON of the result, as a str.")
+      .def("__repr__", &ResultRepr);
+
+  py::class_<KeyframeInfo>(m, "Keyframe", "A keyframe of a database (a copy of its record).")
+      .def_property_readonly(
+          "id", [](const KeyframeInfo& k) { return k.keyframe.id; }, "the source frame's id, >= 1")
+      .def_property_readonly(
+          "timestamp", [](const KeyframeInfo& k) { return k.keyframe.timestamp; },
+          "seconds; -1 when unknown")
+      .def_property_readonly(
+          "pose", [](const KeyframeInfo& k) { return OptionalPose(k.keyframe.pose); },
+          "a Pose, or None when unknown")
+      .def_property_readonly(
+          "source", [](const KeyframeInfo& k) { return k.keyframe.source; },
+          "path of the source image")
+      .def_readonly("stored_image", &KeyframeInfo::stored_image,
+                    "path of the stored PNG (database directory joined); '' when none")
+      .def_property_readonly(
+          "image_file", [](const KeyframeInfo& k) { return k.keyframe.image_file; },
+          "the stored PNG relative to the database directory; '' when none")
+      .def_property_readonly(
+          "crop",
+          [](const KeyframeInfo& k) {
+            const cv::Rect& c = k.keyframe.crop;
+            return py::make_tuple(c.x, c.y, c.width, c.height);
+          },
+          "(x, y, width, height): the kept region, in the original image")
+      .def_property_readonly(
+          "crop_channel", [](const KeyframeInfo& k) { return k.keyframe.crop_channel; },
+          "winning chromaticity channel, -1: the whole image")
+      .def_property_readonly(
+          "original_size",
+          [](const KeyframeInfo& k) {
+            return py::make_tuple(k.keyframe.original_size.width, k.keyframe.original_size.height);
+          },
+          "(width, height) of the source image; (0, 0) when unknown")
+      .def_property_readonly(
+          "stored_size",
+          [](const KeyframeInfo& k) {
+            return py::make_tuple(k.keyframe.stored_size.width, k.keyframe.stored_size.height);
+          },
+          "(width, height) of the stored (cropped, resized) image")
+      .def_property_readonly(
+          "scale", [](const KeyframeInfo& k) { return k.keyframe.scale; },
+          "stored = (original - crop origin) * scale")
+      .def_readonly("num_features", &KeyframeInfo::num_features)
+      .def("__repr__", [](const KeyframeInfo& k) {
+        return fmt::format("Keyframe(id={}, source='{}', stored_image='{}', pose={})",
+                           k.keyframe.id, k.keyframe.source, k.stored_image,
+                           k.keyframe.pose ? PoseRepr(*k.keyframe.pose) : "None");
+      });
+
+  const char* open_doc =
+      "Opens the database directory `dir` (PlaceDatabase::Open).\n\n"
+      "threads: threads each query uses for matching and verification (0: one per core) "
+      "[0, 1024].\n"
+      "expected_features: 'orb' or 'surf': a database of another type is a ValueError.\n"
+      "partition: (i, n): open only partition i of n of the keyframes, by partition_scheme "
+      "'contiguous' or 'interleaved'.\n"
+      "keyframes: open only these keyframe ids.\n"
+      "cluster_radius (metres), cluster_keyframes: the spatial-locality clusters of "
+      "search='cluster'.\n\n"
+      "A missing or damaged database: RuntimeError; bad options: ValueError.";
+  const std::string query_doc =
+      fmt::format(fmt::runtime(kQueryDoc), DescribeOptions(QuerySpecs(), QueryOptions()));
+
+  py::class_<PlaceDatabase>(m, "PlaceDatabase",
+                            "An open keyframe database with the feature extractor its queries "
+                            "need (the library's session API). Queries are thread-safe.")
+      .def(py::init(&OpenDatabase), py::arg("dir"), py::kw_only(), py::arg("threads") = 1,
+           py::arg("expected_features") = py::none(), py::arg("partition") = py::none(),
+           py::arg("partition_scheme") = "contiguous", py::arg("keyframes") = py::none(),
+           py::arg("cluster_radius") = ClusterOptions().radius_m,
+           py::arg("cluster_keyframes") = ClusterOptions().time_keyframes, open_doc)
+      .def_static("open", &OpenDatabase, py::arg("dir"), py::kw_only(), py::arg("threads") = 1,
+                  py::arg("expected_features") = py::none(), py::arg("partition") = py::none(),
+                  py::arg("partition_scheme") = "contiguous", py::arg("keyframes") = py::none(),
+                  py::arg("cluster_radius") = ClusterOptions().radius_m,
+                  py::arg("cluster_keyframes") = ClusterOptions().time_keyframes,
+                  "The same as PlaceDatabase(dir, ...).")
+      .def_property_readonly("size", &PlaceDatabase::size, "number of keyframes opened")
+      .def("__len__", &PlaceDatabase::size)
+      .def_property_readonly(
+          "feature_type",
+          [](const PlaceDatabase& db) { return FeatureTypeName(db.feature_type()); },
+          "'orb' or 'surf'")
+      .def_property_readonly("descriptor_width", &DescriptorColumns,
+                             "columns of a descriptor row: 32 (ORB, uint8), 64 or 128 (SURF, "
+                             "float32)")
+      .def_property_readonly("directory", &PlaceDatabase::directory)
+      .def_property_readonly(
+          "manifest", [](const PlaceDatabase& db) { return FromJson(db.manifest()); },
+          "the manifest (every build setting, counts, sizes, creation info), a dict")
+      .def_property_readonly(
+          "keyframe_ids",
+          [](const PlaceDatabase& db) {
+            std::vector<int32_t> ids;
+            for (const Keyframe& k : db.database().keyframes()) ids.push_back(k.id);
+            return ids;
+          },
+          "ids of the keyframes opened, in file order")
+      .def("keyframe", &GetKeyframe, py::arg("id"),
+           "The keyframe with this id, a Keyframe; KeyError when there is none.")
+      .def("__contains__",
+           [](const PlaceDatabase& db, int32_t id) { return db.FindKeyframe(id) != nullptr; })
+      .def(
+          "keyframe_features",
+          [](const PlaceDatabase& db, int32_t id) {
+            const int index = IndexOf(db, id);
+            return FromFeatures(db.database().Features(static_cast<size_t>(index)),
+                                DescriptorColumns(db));
+          },
+          py::arg("id"),
+          "The stored features of keyframe `id` as (keypoints Nx7 float32, descriptors NxD), in "
+          "the stored image's coordinates (SURF rows grouped by Laplacian sign).")
+      .def("extract", &Extract, py::arg("image"),
+           "The query features of an image, as query() computes them: (keypoints Nx7 float32 "
+           "[x, y, size, angle, response, octave, class_id], descriptors NxD uint8 (ORB) or "
+           "float32 (SURF)). query_features(*db.extract(image)) gives query(image)'s answer.")
+      .def("query", &QueryImage, py::arg("image"), query_doc.c_str())
+      .def("query_features", &QueryFeatures, py::arg("keypoints"), py::arg("descriptors"),
+           "The same as query() for features computed elsewhere (extract(), another process).\n\n"
+           "keypoints: Nx7 float32 (x, y, size, angle, response, octave, class_id) or Nx2 "
+           "(x, y), in the query image's pixels; descriptors: NxD uint8 (ORB, D = 32) or "
+           "float32 (SURF, D = 64 or 128). They are validated against the database (type, "
+           "width, row count, finite positions): ValueError. Keyword options as for query().")
+      .def("__repr__", [](const PlaceDatabase& db) {
+        return fmt::format("<placedb.PlaceDatabase '{}': {} {} keyframes>", db.directory(),
+                           db.size(), FeatureTypeName(db.feature_type()));
+      });
+
+  BuildOptions build_defaults;
+  build_defaults.progress = false;
+  const std::string build_doc =
+      fmt::format(fmt::runtime(kBuildDoc), DescribeOptions(BuildSpecs(), build_defaults));
+  const TumOptions tum_defaults;
+  m.def("build", &Build, py::arg("out"), py::arg("images") = py::none(),
+        py::arg("tum") = py::none(), py::kw_only(), py::arg("first") = 1, py::arg("last") = 0,
+        py::arg("frame_size") = py::none(),
+        py::arg("max_time_diff") = tum_defaults.max_time_difference,
+        py::arg("tum_rgb_list") = tum_defaults.rgb_list,
+        py::arg("tum_groundtruth") = tum_defaults.groundtruth, build_doc.c_str());
+
+  const EvalOptions eval_defaults;
+  const PoseThresholds pose_defaults;
+  m.def("evaluate", &EvaluateDatabase, py::arg("db"), py::arg("images") = py::none(),
+        py::arg("tum") = py::none(), py::kw_only(), py::arg("first") = 1, py::arg("last") = 0,
+        py::arg("frame_size") = py::none(),
+        py::arg("max_time_diff") = tum_defaults.max_time_difference,
+        py::arg("tum_rgb_list") = tum_defaults.rgb_list,
+        py::arg("tum_groundtruth") = tum_defaults.groundtruth, py::arg("truth_csv") = py::none(),
+        py::arg("max_dist") = pose_defaults.max_distance_m,
+        py::arg("max_angle") = pose_defaults.max_angle_deg,
+        py::arg("num_queries") = eval_defaults.num_queries, py::arg("all") = eval_defaults.all,
+        py::arg("seed") = eval_defaults.seed, py::arg("sequence") = eval_defaults.sequence,
+        py::arg("progress") = false, fmt::format(fmt::runtime(kEvaluateDoc)).c_str());
+
+  m.def("read_image", &ReadImage, py::arg("path"),
+        "Reads an image file as an HxWx3 uint8 BGR array (OpenCV's imread, as build and evaluate "
+        "read frames); ValueError when it cannot be read.");
+  m.def(
+      "query_option_defaults", []() { return OptionValues(QuerySpecs(), QueryOptions()); },
+      "The query options (keywords of query(), query_features(), evaluate()) and their "
+      "defaults, a dict.");
+  m.def(
+      "build_setting_defaults",
+      [build_defaults]() { return OptionValues(BuildSpecs(), build_defaults); },
+      "The build settings (keywords of build()) and their defaults, a dict.");
+  m.def("set_log_level", &SetLogLevel, py::arg("level"),
+        "The library's log level: 'trace', 'debug', 'info' (default), 'warn', 'error', "
+        "'critical' or 'off'. Logs go to the process's stderr.");
+}
