@@ -499,8 +499,7 @@ ExperimentSummary RunExperiment(const ExperimentData& data, const GroundTruth& t
         {"sequence", eval.sequence}}},
       {"truth", truth.Describe()},
       {"database_frames", FramesIdentity(data.database, data.database_from)},
-      {"query_frames", FramesIdentity(data.queries, data.queries_from)},
-      {"pictures", {{"matches", options.num_pictures}, {"failures", options.num_failures}}}};
+      {"query_frames", FramesIdentity(data.queries, data.queries_from)}};
   const fs::path out(out_dir);
   PrepareFolder(out_dir, config, options.overwrite);
 
@@ -559,6 +558,9 @@ ExperimentSummary RunExperiment(const ExperimentData& data, const GroundTruth& t
   }
   nlohmann::json results = config;
   results["generated_by"] = "placedb experiment";
+  // Pictures are drawn anew by every run: their numbers are not part of what
+  // a resumed run must agree on.
+  results["num_pictures"] = {{"matches", options.num_pictures}, {"failures", options.num_failures}};
   results["settings"] = nlohmann::json::array();
   for (const ExperimentSetting& s : grid) results["settings"].push_back(finished.at(s.Name()));
   results["pictures"] = pictures;

@@ -489,4 +489,18 @@ TEST_F(CliTest, QueryDrawsItsMatchesAndExperimentChecksItsGrid) {
   EXPECT_TRUE(Contains(ok.output, "1 settings (0 finished earlier), 3 queries each")) << ok.output;
   EXPECT_TRUE(fs::exists(Path("exp/results.json")));
   EXPECT_FALSE(fs::exists(Path("exp/report.html")));
+  // Two sequences: the database from one (the paper's training sequence),
+  // the queries from another, truth from the poses.
+  const CommandResult two = Placedb(
+      "experiment --tum " PLACEDB_DATA_DIR "/tum_fr3_office_32 --first 17 --db-tum " PLACEDB_DATA_DIR
+      "/tum_fr3_office_mini --features orb --crop none --resize 16 --verification on --all "
+      "--no-report --quiet --out " + Path("two"));
+  ASSERT_EQ(two.code, 0) << two.output;
+  EXPECT_TRUE(Contains(two.output, "16 queries each")) << two.output;
+  EXPECT_TRUE(Contains(two.output, "tum_fr3_office_mini (4 frames)")) << two.output;
+  const CommandResult both = Placedb(
+      "experiment --tum " PLACEDB_DATA_DIR "/tum_fr3_office_32 --db-tum x --db-images y --out " +
+      Path("both"));
+  EXPECT_EQ(both.code, 1);
+  EXPECT_TRUE(Contains(both.output, "exclude each other")) << both.output;
 }

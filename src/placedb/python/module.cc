@@ -25,6 +25,7 @@
 #include "placedb/dataset/tum.h"
 #include "placedb/eval/evaluate.h"
 #include "placedb/eval/ground_truth.h"
+#include "placedb/eval/pictures.h"
 #include "placedb/index/builder.h"
 #include "placedb/index/place_database.h"
 #include "placedb/index/query.h"
@@ -209,6 +210,61 @@ QueryResult QueryFeatures(const PlaceDatabase& db, const py::object& keypoints,
   const FeatureInput in = ToFeatures(keypoints, descriptors);
   py::gil_scoped_release release;
   return db.Query(in.set, options);
+}
+
+// Why keyframe `id` matched the image: PlaceDatabase::Explain as a dict of
+// NumPy arrays.
+py::dict ExplainImage(const PlaceDatabase& db, const py::object& image, int32_t id,
+                      const py::kwargs& kwargs) {
+  const QueryOptions options = QueryOptionsFrom(kwargs);
+  const ImageInput in = ToImage(image);
+  MatchDetail d;
+  {
+    py::gil_scoped_release release;
+    d = db.Explain(db.Extract(in.mat), id, options);
+  }
+  const size_t n = d.matches.size();
+  py::array_t<float> query_points({n, size_t{2}}), keyframe_points({n, size_t{2}});
+  py::array_t<float> distances(n);
+  py::array_t<bool> inliers(n);
+  auto q = query_points.mutable_unchecked<2>();
+  auto k = keyframe_points.mutable_unchecked<2>();
+  auto dist = distances.mutable_unchecked<1>();
+  auto in_mask = inliers.mutable_unchecked<1>();
+  for (size_t i = 0; i < n; ++i) {
+    const cv::DMatch& m = d.matches[i];
+    const cv::Point2f a = d.query_keypoints[m.queryIdx].pt;
+    const cv::Point2f b = d.keyframe_points[m.trainIdx];
+    q(i, 0) = a.x;
+    q(i, 1) = a.y;
+    k(i, 0) = b.x;
+    k(i, 1) = b.y;
+    dist(i) = m.distance;
+    in_mask(i) = d.verified && i < d.inliers.size() && d.inliers[i] != 0;
+  }
+  py::dict out;
+  out["keyframe_id"] = d.keyframe_id;
+  out["num_matches"] = n;
+  out["verified"] = d.verified;
+  out["num_inliers"] = d.verified ? d.num_inliers : -1;
+  out["query_points"] = query_points;
+  out["keyframe_points"] = keyframe_points;
+  out["distances"] = distances;
+  out["inliers"] = inliers;
+  return out;
+}
+
+// The query beside keyframe `id` with the matches drawn (query --draw).
+py::array DrawMatch(const PlaceDatabase& db, const py::object& image, int32_t id,
+                    const std::string& caption, const py::kwargs& kwargs) {
+  const QueryOptions options = QueryOptionsFrom(kwargs);
+  const ImageInput in = ToImage(image);
+  cv::Mat picture;
+  {
+    py::gil_scoped_release release;
+    picture = DrawQueryMatch(db, in.mat, db.Extract(in.mat), id, options, caption);
+  }
+  return FromImage(picture);
 }
 
 py::tuple Extract(const PlaceDatabase& db, const py::object& image) {
@@ -661,6 +717,18 @@ PYBIND11_MODULE(placedb, m) {
            "(x, y), in the query image's pixels; descriptors: NxD uint8 (ORB, D = 32) or "
            "float32 (SURF, D = 64 or 128). They are validated against the database (type, "
            "width, row count, finite positions): ValueError. Keyword options as for query().")
+      .def("explain", &ExplainImage, py::arg("image"), py::arg("keyframe_id"),
+           "Why keyframe `keyframe_id` matched `image` (or did not): the match and verify "
+           "stages on that keyframe alone, as a query counts them. A dict: keyframe_id, "
+           "num_matches, verified, num_inliers (-1 unverified), query_points (Nx2 float32, the "
+           "query's pixels), keyframe_points (Nx2, the keyframe's original image), distances "
+           "(N), inliers (N bool). Keyword options as for query(); KeyError-like ValueError "
+           "for an unknown id.")
+      .def("draw_match", &DrawMatch, py::arg("image"), py::arg("keyframe_id"),
+           py::arg("caption") = "",
+           "The query beside keyframe `keyframe_id` with the matches joined by lines (verified "
+           "green, rejected amber), as `placedb query --draw` draws it: an HxWx3 BGR uint8 "
+           "array. Keyword options as for query().")
       .def("__repr__", [](const PlaceDatabase& db) {
         return fmt::format("<placedb.PlaceDatabase '{}': {} {} keyframes>", db.directory(),
                            db.size(), FeatureTypeName(db.feature_type()));

@@ -130,6 +130,33 @@ class PlaceDbTest(unittest.TestCase):
         self.assertGreaterEqual(r.times.total_ms, r.times.extract_ms)
         self.assertIn("keyframe 5", repr(r))
 
+    def test_explain_and_draw_match(self):
+        image = placedb.read_image(image_path(6))
+        r = self.db.query(image, top_k=3)
+        best = r.ranked[0]
+        e = self.db.explain(image, best.keyframe_id)
+        # The same matches and inliers the query counted.
+        self.assertEqual(e["keyframe_id"], best.keyframe_id)
+        self.assertEqual(e["num_matches"], best.num_matches)
+        self.assertEqual(e["num_inliers"], best.num_inliers)
+        self.assertEqual(e["query_points"].shape, (best.num_matches, 2))
+        self.assertEqual(e["keyframe_points"].shape, (best.num_matches, 2))
+        self.assertEqual(int(e["inliers"].sum()), best.num_inliers)
+        h, w = image.shape[:2]
+        self.assertTrue((e["query_points"] >= 0).all())
+        self.assertTrue((e["query_points"][:, 0] < w).all())
+        unverified = self.db.explain(image, best.keyframe_id, verify=False)
+        self.assertFalse(unverified["verified"])
+        self.assertEqual(unverified["num_inliers"], -1)
+        picture = self.db.draw_match(image, best.keyframe_id, "q6")
+        self.assertEqual(picture.dtype, np.uint8)
+        self.assertEqual(picture.ndim, 3)
+        self.assertGreater(picture.shape[1], 2 * 360)
+        with self.assertRaises(ValueError):
+            self.db.explain(image, 999)
+        with self.assertRaises(ValueError):
+            self.db.draw_match(np.zeros((0, 0, 3), np.uint8), best.keyframe_id)
+
     def test_to_dict_is_the_library_json(self):
         r = self.db.query(self.image5)
         d = r.to_dict()
