@@ -164,6 +164,7 @@ struct Query {
 struct ModeRun {
   std::string mode;
   double deadline_ms = 0.0;
+  int guided_candidates = 0;    // bow and cluster: matched in full after guided ranking; 0: all
   std::vector<size_t> queries;  // indices into the query list
   std::vector<double> ms;       // per run query
   std::vector<double> overshoot_ms;
@@ -190,14 +191,16 @@ struct ModeRun {
 
 ModeRun RunMode(const placedb::PlaceDatabase& db, const std::vector<Query>& queries,
                 const std::vector<size_t>& which, const std::string& mode, double deadline_ms,
-                size_t num_places, int bow_candidates) {
+                size_t num_places, int bow_candidates, int guided_candidates) {
   placedb::QueryOptions options;
   options.retrieval.bow_candidates = bow_candidates;
+  options.retrieval.guided_candidates = guided_candidates;
   options.retrieval.method = placedb::ParseRetrievalMethod(mode);
   options.deadline_ms = deadline_ms;
   ModeRun run;
   run.mode = mode;
   run.deadline_ms = deadline_ms;
+  run.guided_candidates = mode == "exhaustive" ? 0 : guided_candidates;
   run.queries = which;
   const auto query = [&](const Query& q) {
     placedb::QueryOptions o = options;
@@ -257,6 +260,7 @@ int main(int argc, char** argv) {
   std::vector<std::string> modes = {"exhaustive", "bow", "cluster"};
   int num_queries = 200, exhaustive_queries = 20, threads_build = 0, features = 500;
   int fast_threshold = 5, bow_candidates = placedb::RetrievalOptions().bow_candidates;
+  int guided_candidates = placedb::RetrievalOptions().guided_candidates;
   double deadline_ms = 2.0, cluster_radius = 0.5;
   std::string out = "out/bench/scale", json_path, data = PLACEDB_DATA_DIR;
   app.add_option("--sizes", sizes, "database sizes, keyframes")
@@ -275,8 +279,13 @@ int main(int argc, char** argv) {
   app.add_option("--deadline-ms", deadline_ms, "deadline of the bow deadline run")
       ->check(CLI::Range(0.01, 1e6))
       ->capture_default_str();
-  app.add_option("--bow-candidates", bow_candidates, "keyframes bow (and cluster) search matches")
+  app.add_option("--bow-candidates", bow_candidates, "keyframes bow (and cluster) search scores")
       ->check(CLI::Range(1, 100000))
+      ->capture_default_str();
+  app.add_option("--guided-candidates", guided_candidates,
+                 "of those, matched in full after guided ranking (0: all); bow also runs "
+                 "unguided")
+      ->check(CLI::Range(0, 100000))
       ->capture_default_str();
   app.add_option("--cluster-radius", cluster_radius,
                  "cluster radius, metres (views of one "
@@ -324,6 +333,7 @@ int main(int argc, char** argv) {
                               {"ns_per_distance", ns},
                               {"deadline_ms", deadline_ms},
                               {"bow_candidates", bow_candidates},
+                              {"guided_candidates", guided_candidates},
                               {"cluster_radius_m", cluster_radius},
                               {"keyframe_augment", placedb::AugmentOptionsToJson(keyframe_aug)},
                               {"query_augment", placedb::AugmentOptionsToJson(query_aug)},
@@ -405,9 +415,15 @@ int main(int argc, char** argv) {
       std::vector<ModeRun> runs;
       for (const std::string& m : modes) {
         runs.push_back(RunMode(db, queries, m == "exhaustive" ? subset : all, m, 0.0, num_sources,
-                               bow_candidates));
-        if (m == "bow")
-          runs.push_back(RunMode(db, queries, all, m, deadline_ms, num_sources, bow_candidates));
+                               bow_candidates, guided_candidates));
+        if (m == "bow" && guided_candidates > 0) {
+          // The same without guided ranking: every bow candidate matched in full.
+          runs.push_back(RunMode(db, queries, all, m, 0.0, num_sources, bow_candidates, 0));
+        }
+        if (m == "bow") {
+          runs.push_back(RunMode(db, queries, all, m, deadline_ms, num_sources, bow_candidates,
+                                 guided_candidates));
+        }
       }
       const double limit_ms = query_features * db.database().num_features() * ns / 1e6;
       const ModeRun* exhaustive = nullptr;
@@ -440,11 +456,13 @@ int main(int argc, char** argv) {
         const size_t nq = r.queries.size();
         const double recall = ModeRun::Recall(r.correct, r.queries);
         const double place = ModeRun::Recall(r.correct_place, r.queries);
-        const std::string name =
-            r.deadline_ms > 0 ? fmt::format("{}, deadline {:g} ms", r.mode, r.deadline_ms) : r.mode;
+        std::string name = r.mode;
+        if (r.mode != "exhaustive" && r.guided_candidates == 0) name += ", unguided";
+        if (r.deadline_ms > 0) name += fmt::format(", deadline {:g} ms", r.deadline_ms);
         nlohmann::json m = {
             {"mode", r.mode},
             {"deadline_ms", r.deadline_ms},
+            {"guided_candidates", r.guided_candidates},
             {"queries", nq},
             {"latency_ms", StatsJson(s)},
             {"recall_at_1", recall},

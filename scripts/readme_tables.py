@@ -114,7 +114,11 @@ def scale_table(j):
             "vs exhaustive |", "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for s in j["sizes"]:
         for m in s["modes"]:
-            name = m["mode"] + (f", deadline {m['deadline_ms']:g} ms" if m["deadline_ms"] > 0 else "")
+            name = m["mode"]
+            if m["mode"] != "exhaustive" and m.get("guided_candidates", 0) == 0:
+                name += f", unguided (all {j['bow_candidates']} matched)"
+            if m["deadline_ms"] > 0:
+                name += f", deadline {m['deadline_ms']:g} ms"
             if m["mode"] == "exhaustive":
                 vs = f"{m['vs_popcount_limit']:.2f}× the popcount limit"
             elif "recall_points_vs_exhaustive" in m:
@@ -124,6 +128,13 @@ def scale_table(j):
                 vs = ""
             if "overshoot_p99_ms" in m:
                 vs += f"; overshoot p99 {m['overshoot_p99_ms']:.2f} ms"
+                # One candidate's work, from the same size's bow run: its match and verify time per
+                # candidate examined.
+                full = [b for b in s["modes"] if b["mode"] == m["mode"] and b["deadline_ms"] == 0
+                        and b.get("guided_candidates", 0) == m.get("guided_candidates", 0)]
+                if full and full[0]["examined_mean"] > 0:
+                    st = full[0]["stage_ms_mean"]
+                    vs += f" (one candidate's match + verify: {(st['match'] + st['verify']) / full[0]['examined_mean']:.2f} ms)"
             rows.append(f"| {s['keyframes']} | {name} | {m['queries']} | {m['latency_ms']['p50']:.2f} | "
                         f"{m['latency_ms']['p99']:.2f} | {m['recall_at_1']:.3f} | {m['place_recall_at_1']:.3f} | "
                         f"{m['examined_mean']:.0f} | {vs} |")
@@ -135,7 +146,9 @@ def scale_table(j):
                     f"{s['rss_mib']:.0f} (+{s['rss_increase_mib']:.0f}) | {s['popcount_limit_ms']:.2f} |")
     note = (f"{j['sample_images']} sample images augmented; at most {j['features_per_frame']} ORB features per "
             f"frame (FAST threshold {j['fast_threshold']}); {j['cpus']} CPUs; queries on one thread, feature "
-            f"extraction excluded; bow examines {j['bow_candidates']} candidates. recall@1: the answer is the very "
+            f"extraction excluded; bow scores {j['bow_candidates']} candidates by bag of words and matches the "
+            f"{j.get('guided_candidates', 0)} with the most guided matches in full (unguided: all of them). "
+            "recall@1: the answer is the very "
             "keyframe the query was made from; place recall@1: a view of the same sample image. Exhaustive search "
             f"runs on {j['exhaustive_queries_above_1000']} of the queries above 1000 keyframes; \"vs exhaustive\" "
             "gives the difference in recall@1 / place recall@1 on those. Popcount limit: "

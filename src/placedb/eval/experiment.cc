@@ -71,8 +71,7 @@ std::string ExperimentOptions::Check() const {
   return FirstReason({CheckList("features", features), CheckList("crops", crops),
                       CheckList("resizes", resizes), resize_reason, CheckList("verify", verify),
                       Nested("build", build.Check()), Nested("query", query.Check()),
-                      Nested("eval", eval.Check()),
-                      CheckRange("num_pictures", num_pictures, 0, 20),
+                      Nested("eval", eval.Check()), CheckRange("num_pictures", num_pictures, 0, 20),
                       CheckRange("num_failures", num_failures, 0, 100)});
 }
 
@@ -96,6 +95,7 @@ nlohmann::json QueryOptionsToJson(const QueryOptions& o) {
           {"retrieval",
            {{"method", RetrievalMethodName(o.retrieval.method)},
             {"bow_candidates", o.retrieval.bow_candidates},
+            {"guided_candidates", o.retrieval.guided_candidates},
             {"cluster_hops", o.retrieval.cluster_hops},
             {"cluster_fallback_score", o.retrieval.cluster_fallback_score}}},
           {"match",
@@ -176,7 +176,7 @@ std::string FirstDifference(const nlohmann::json& a, const nlohmann::json& b) {
 }
 
 // What OUT owns; --overwrite removes exactly these.
-const char* const kOwned[] = {"experiment.json", "databases", "settings", "pictures",
+const char* const kOwned[] = {"experiment.json", "databases",   "settings", "pictures",
                               "results.json",    "report.html", "figures"};
 
 void PrepareFolder(const std::string& out, const nlohmann::json& config, bool overwrite) {
@@ -294,14 +294,15 @@ class PictureMaker {
   // The settings the pictures come from: the first feature, full size (or
   // the first resize), verified when the grid has it; one per crop mode.
   std::vector<ExperimentSetting> PictureSettings() const {
-    const int resize = std::find(options_.resizes.begin(), options_.resizes.end(), 1) !=
-                               options_.resizes.end()
-                           ? 1
-                           : options_.resizes.front();
-    const bool verify = std::find(options_.verify.begin(), options_.verify.end(), true) !=
-                        options_.verify.end();
+    const int resize =
+        std::find(options_.resizes.begin(), options_.resizes.end(), 1) != options_.resizes.end()
+            ? 1
+            : options_.resizes.front();
+    const bool verify =
+        std::find(options_.verify.begin(), options_.verify.end(), true) != options_.verify.end();
     std::vector<ExperimentSetting> out;
-    for (const CropMode c : options_.crops) out.push_back({options_.features.front(), c, resize, verify});
+    for (const CropMode c : options_.crops)
+      out.push_back({options_.features.front(), c, resize, verify});
     return out;
   }
 
@@ -323,7 +324,8 @@ class PictureMaker {
     }
     std::vector<int> chosen = differing;
     chosen.insert(chosen.end(), agreeing.begin(), agreeing.end());
-    if (chosen.size() > static_cast<size_t>(options_.num_pictures)) chosen.resize(options_.num_pictures);
+    if (chosen.size() > static_cast<size_t>(options_.num_pictures))
+      chosen.resize(options_.num_pictures);
     std::sort(chosen.begin(), chosen.end());
     const QueryOptions query = QueryFor(options_, true);
     for (const int id : chosen) {
@@ -403,14 +405,14 @@ class PictureMaker {
                               {"roi", {cand.roi.x, cand.roi.y, cand.roi.width, cand.roi.height}},
                               {"fast_keypoints", cand.fast_keypoints}});
       }
-      list.push_back(
-          {{"frame_id", f.id},
-           {"file", file},
-           {"whole_image", crop.whole_image},
-           {"winner", crop.channel < 0 ? "none"
-                                       : ChromaChannelName(static_cast<ChromaChannel>(crop.channel))},
-           {"min_fast_keypoints", co.min_fast_keypoints},
-           {"candidates", candidates}});
+      list.push_back({{"frame_id", f.id},
+                      {"file", file},
+                      {"whole_image", crop.whole_image},
+                      {"winner", crop.channel < 0
+                                     ? "none"
+                                     : ChromaChannelName(static_cast<ChromaChannel>(crop.channel))},
+                      {"min_fast_keypoints", co.min_fast_keypoints},
+                      {"candidates", candidates}});
     }
     return list;
   }

@@ -269,7 +269,11 @@ void QueryArgs::Add(CLI::App* cmd, bool for_queries) {
       ->capture_default_str()
       ->check(CLI::IsMember({"exhaustive", "bow", "cluster"}));
   cmd->add_option("--bow-candidates", q.retrieval.bow_candidates,
-                  "bow: keyframes matched, best bag-of-words score first [1, 100000]")
+                  "bow: keyframes scored best by bag of words [1, 100000]")
+      ->capture_default_str();
+  cmd->add_option("--guided-candidates", q.retrieval.guided_candidates,
+                  "bow: of those, the ones with the most guided matches (same vocabulary node) "
+                  "are matched in full; 0 = all [0, 100000]")
       ->capture_default_str();
   cmd->add_option("--cluster-hops", q.retrieval.cluster_hops,
                   "cluster: neighbour clusters searched around the prior's, in hops [0, 64]")

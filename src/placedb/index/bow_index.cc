@@ -18,6 +18,18 @@ namespace placedb {
 
 namespace {
 
+// A well-mixed 64-bit hash of one (word, keyframe, weight) entry (the
+// finaliser of SplitMix64 over the packed fields), summed over a multiset.
+uint64_t EntryHash(uint32_t word, uint32_t keyframe, float weight) {
+  uint32_t bits = 0;
+  std::memcpy(&bits, &weight, sizeof(bits));
+  uint64_t z = (static_cast<uint64_t>(word) << 32 | keyframe) * 0x9e3779b97f4a7c15ULL ^
+               (static_cast<uint64_t>(bits) + 0x632be59bd9b4e019ULL);
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return z ^ (z >> 31);
+}
+
 static_assert(offsetof(BowIndexFileHeader, vocabulary_checksum) == 32 &&
                   offsetof(BowIndexFileHeader, num_entries) == 56 &&
                   offsetof(BowIndexFileHeader, header_checksum) ==
@@ -317,13 +329,20 @@ BowIndex BowIndex::FromImage(flat_file::Image image, const std::string& shown,
            db.FeatureCount(i), " in the database)");
     }
   }
+  // Which nodes a direct entry may name, as a table of one byte per node:
+  // the entries are then checked in one sequential pass instead of one
+  // random access into the tree each.
+  std::vector<uint8_t> direct_node_ok(vocab.num_nodes(), 0);
+  for (uint32_t node = 0; node < vocab.num_nodes(); ++node) {
+    const Vocabulary::Node& n = vocab.node(node);
+    direct_node_ok[node] =
+        n.level == direct_level || (n.num_children == 0 && n.level < direct_level);
+  }
   const uint32_t* direct_nodes = image.At<uint32_t>(at.direct_nodes);
   for (uint64_t e = 0; e < features; ++e) {
     const uint32_t node = direct_nodes[e];
-    const bool ok = node < vocab.num_nodes() &&
-                    (vocab.node(node).level == direct_level ||
-                     (vocab.node(node).num_children == 0 && vocab.node(node).level < direct_level));
-    if (!ok) fail("direct entry ", e, " (node ", node, ") is not a node of level ", direct_level);
+    if (node >= vocab.num_nodes() || !direct_node_ok[node])
+      fail("direct entry ", e, " (node ", node, ") is not a node of level ", direct_level);
   }
 
   // The keyframe vectors.
@@ -331,9 +350,17 @@ BowIndex BowIndex::FromImage(flat_file::Image image, const std::string& shown,
   const uint32_t* vector_words = image.At<uint32_t>(at.vector_words);
   const float* vector_weights = image.At<float>(at.vector_weights);
   check_offsets(vector_offsets, num_keyframes, entries, "vector");
+  // The inverted file must hold exactly the vectors' (word, keyframe,
+  // weight) entries, transposed. Both sides are summed as a multiset hash
+  // in one sequential pass each (a random access per posting into the
+  // vectors would dominate the open time of a large database); with the
+  // counts equal, a difference shows as different sums, but for a
+  // deliberately forged file (and the file is checksummed as a whole).
+  uint64_t vector_hash = 0;
   for (uint32_t i = 0; i < num_keyframes; ++i) {
     double sum = 0.0;
     for (uint64_t e = vector_offsets[i]; e < vector_offsets[i + 1]; ++e) {
+      vector_hash += EntryHash(vector_words[e], i, vector_weights[e]);
       if (vector_words[e] >= num_words ||
           (e > vector_offsets[i] && vector_words[e - 1] >= vector_words[e]))
         fail("keyframe ", i, "'s words are not ascending and below ", num_words);
@@ -345,26 +372,23 @@ BowIndex BowIndex::FromImage(flat_file::Image image, const std::string& shown,
       fail("keyframe ", i, "'s weights sum to ", sum, ", not 1");
   }
 
-  // The inverted file: sorted postings that are exactly the vectors
-  // transposed (each posting consumes its keyframe's next entry, and there
-  // are as many postings as entries).
+  // The inverted file: postings sorted by keyframe within each word, as
+  // many as the vectors' entries, and the same entries (the hashes).
   const uint64_t* word_offsets = image.At<uint64_t>(at.word_offsets);
   const Posting* postings = image.At<Posting>(at.postings);
   check_offsets(word_offsets, num_words, entries, "word");
-  std::vector<uint64_t> next(vector_offsets, vector_offsets + num_keyframes);
+  uint64_t posting_hash = 0;
   for (uint32_t word = 0; word < num_words; ++word) {
     for (uint64_t p = word_offsets[word]; p < word_offsets[word + 1]; ++p) {
       const uint32_t k = postings[p].keyframe;
       if (k >= num_keyframes) fail("a posting of word ", word, " names keyframe ", k);
       if (p > word_offsets[word] && postings[p - 1].keyframe >= k)
         fail("the postings of word ", word, " are not sorted by keyframe");
-      const uint64_t e = next[k]++;
-      if (e >= vector_offsets[k + 1] || vector_words[e] != word ||
-          vector_weights[e] != postings[p].weight) {
-        fail("the inverted file disagrees with keyframe ", k, "'s vector at word ", word);
-      }
+      posting_hash += EntryHash(word, k, postings[p].weight);
     }
   }
+  if (posting_hash != vector_hash)
+    fail("the inverted file disagrees with the keyframe vectors (not their transpose)");
 
   BowIndex index;
   index.vocabulary_ = std::move(vocabulary);
@@ -403,7 +427,8 @@ Span<uint32_t> BowIndex::DirectNodes(uint32_t index) const {
 }
 
 std::vector<BowIndex::Scored> BowIndex::Query(const BowVector& query, size_t max_results,
-                                              const std::vector<uint32_t>* among) const {
+                                              const std::vector<uint32_t>* among,
+                                              const Deadline& deadline, bool* stopped) const {
   const size_t n = query.words.size();
   PLACEDB_CHECK(query.weights.size() == n, "a bag of words needs one weight per word");
   const uint32_t num_words = vocabulary_->num_words();
@@ -439,8 +464,15 @@ std::vector<BowIndex::Scored> BowIndex::Query(const BowVector& query, size_t max
   // min of two floats is exact, so it equals BowScore's min in double). The
   // inner loop has no branch: which weight is smaller, and whether a
   // keyframe is new, are coin flips for a branch predictor.
+  const bool timed = deadline.enabled();
   const auto accumulate = [&](auto with_among) {
     for (size_t i = 0; i < n; ++i) {
+      // (Not before a keyframe has a score: the query examines at least one.)
+      if (timed && i % kDeadlineCheckWords == kDeadlineCheckWords - 1 && num_touched > 0 &&
+          deadline.passed()) {
+        if (stopped != nullptr) *stopped = true;
+        break;
+      }
       // The posting lists lie far apart: fetch the offsets of a word 8 ahead
       // and the first postings of a word 4 ahead (its offsets are in cache
       // by now), so that memory latency overlaps the additions.

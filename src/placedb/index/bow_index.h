@@ -39,6 +39,7 @@
 #include "placedb/index/vocabulary.h"
 #include "placedb/util/mapped_file.h"
 #include "placedb/util/span.h"
+#include "placedb/util/timer.h"
 
 namespace placedb {
 
@@ -155,8 +156,16 @@ class BowIndex {
   // unique indices < size()), only those keyframes. Query words of weight <= 0
   // score nothing. Throws std::invalid_argument for an unsorted query, a word
   // beyond the vocabulary, or a bad `among`.
+  //
+  // Under `deadline` the scoring stops once it has passed (checked every
+  // kDeadlineCheckWords query words, once some keyframe has a score) and
+  // *stopped (when given) is set: the scores are then those of the query's
+  // words scored so far, a partial ranking, so that a query's time budget
+  // also bounds this stage.
+  static constexpr size_t kDeadlineCheckWords = 16;
   std::vector<Scored> Query(const BowVector& query, size_t max_results,
-                            const std::vector<uint32_t>* among = nullptr) const;
+                            const std::vector<uint32_t>* among = nullptr,
+                            const Deadline& deadline = Deadline(), bool* stopped = nullptr) const;
 
  private:
   // A posting, the layout of the file's 8-byte record.

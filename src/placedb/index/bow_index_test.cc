@@ -349,6 +349,32 @@ TEST(BowIndex, QueryEqualsBruteForceScores) {
       "one weight per word"));
 }
 
+// A deadline that has passed stops the scoring after the first words: the
+// scores are those of that prefix of the query's words; one that does not
+// pass changes nothing.
+TEST(BowIndex, QueryStopsAtTheDeadline) {
+  const World& w = Orb();
+  const BowIndex& index = *w.index;
+  const BowVector q = w.Query(3);
+  ASSERT_GT(q.words.size(), 2 * BowIndex::kDeadlineCheckWords);
+  const Timer clock;
+  bool stopped = false;
+  const std::vector<BowIndex::Scored> full = index.Query(q, kKeyframes);
+  ExpectSameResults(index.Query(q, kKeyframes, nullptr, Deadline(clock, 1e9), &stopped), full);
+  EXPECT_FALSE(stopped);
+  while (clock.ElapsedMs() < 0.01) {
+  }
+  const std::vector<BowIndex::Scored> partial =
+      index.Query(q, kKeyframes, nullptr, Deadline(clock, 0.001), &stopped);
+  EXPECT_TRUE(stopped);
+  BowVector prefix;
+  const size_t scored = BowIndex::kDeadlineCheckWords - 1;
+  prefix.words.assign(q.words.begin(), q.words.begin() + scored);
+  prefix.weights.assign(q.weights.begin(), q.weights.begin() + scored);
+  ASSERT_FALSE(partial.empty());
+  ExpectSameResults(partial, BruteForce(index, prefix, kKeyframes, nullptr));
+}
+
 TEST(BowIndex, QueryAmongOnlyReturnsThose) {
   const World& w = Orb();
   const BowIndex& index = *w.index;
@@ -603,10 +629,13 @@ TEST_F(BowIndexFileTest, OpenRejectsBadSections) {
   flat_file::Reseal(&swapped);
   EXPECT_TRUE(Rejects(swapped, "are not sorted by keyframe"));
   const float weight = At<float>(first + 4);
-  EXPECT_TRUE(Rejects(With<float>(first + 4, weight * 0.5f), "disagrees with keyframe"));
-  EXPECT_TRUE(Rejects(With<uint32_t>(first, keyframes_ - 1), "disagrees"));  // no words
+  EXPECT_TRUE(
+      Rejects(With<float>(first + 4, weight * 0.5f), "disagrees with the keyframe vectors"));
+  // A posting moved to another keyframe, a posting moved to another word:
+  // the order within the word breaks first.
+  EXPECT_TRUE(Rejects(With<uint32_t>(first, keyframes_ - 1), "not sorted by keyframe"));
   EXPECT_TRUE(Rejects(With<uint64_t>(word_offsets_ + 8 * (word + 1), WordOffset(word + 1) - 1),
-                      "disagrees"));
+                      "not sorted by keyframe"));
   EXPECT_TRUE(Rejects(With<uint64_t>(word_offsets_ + 8 * (word + 1), entries_ + 1),
                       "word offsets decrease"));
 }

@@ -32,21 +32,32 @@ std::vector<BowIndex::Scored> GrowingBowIndex::ScoreEach(const BowVector& query,
   return out;
 }
 
-void GrowingBowIndex::Append(BowVector words) {
+void GrowingBowIndex::Append(BowVector words, std::vector<uint32_t> nodes) {
   const uint32_t offset = static_cast<uint32_t>(added_.size());
   for (const uint32_t w : words.words) added_postings_[w].push_back(offset);
   added_.push_back(std::move(words));
+  added_nodes_.push_back(std::move(nodes));
+}
+
+Span<uint32_t> GrowingBowIndex::DirectNodes(uint32_t index) const {
+  const uint32_t base = static_cast<uint32_t>(base_.size());
+  if (index < base) return base_.DirectNodes(index);
+  PLACEDB_CHECK(index - base < added_nodes_.size(), "keyframe index ", index, " of ", size());
+  const std::vector<uint32_t>& nodes = added_nodes_[index - base];
+  return Span<uint32_t>(nodes.data(), nodes.size());
 }
 
 std::vector<BowIndex::Scored> GrowingBowIndex::Query(const BowVector& query, size_t max_results,
-                                                     const std::vector<uint32_t>* among) const {
+                                                     const std::vector<uint32_t>* among,
+                                                     const Deadline& deadline,
+                                                     bool* stopped) const {
   const uint32_t base = static_cast<uint32_t>(base_.size());
   // A few keyframes (a cluster and its neighbours) are scored one by one:
   // cheaper than walking the query's postings over the whole database. The
   // scores are the same either way (BowIndex::Query's are BowScore's).
   if (among != nullptr && among->size() * kDirectScoreFactor < size())
     return ScoreEach(query, max_results, *among);
-  if (added_.empty()) return base_.Query(query, max_results, among);
+  if (added_.empty()) return base_.Query(query, max_results, among, deadline, stopped);
   std::vector<uint32_t> base_among, added_among;
   if (among != nullptr) {
     PLACEDB_CHECK(among->empty() || among->back() < size(), "keyframe index ", among->back(),
@@ -55,8 +66,13 @@ std::vector<BowIndex::Scored> GrowingBowIndex::Query(const BowVector& query, siz
     base_among.assign(among->begin(), split);
     added_among.assign(split, among->end());
   }
-  std::vector<BowIndex::Scored> out =
-      base_.Query(query, max_results, among != nullptr ? &base_among : nullptr);
+  bool base_stopped = false;
+  std::vector<BowIndex::Scored> out = base_.Query(
+      query, max_results, among != nullptr ? &base_among : nullptr, deadline, &base_stopped);
+  if (base_stopped) {
+    if (stopped != nullptr) *stopped = true;
+    return out;
+  }
   // The added keyframes that share a word with the query, scored in full.
   std::vector<uint32_t> touched;
   for (const uint32_t w : query.words) {

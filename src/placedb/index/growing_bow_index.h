@@ -24,15 +24,25 @@ class GrowingBowIndex {
   size_t size() const { return base_.size() + added_.size(); }
   size_t num_added() const { return added_.size(); }
 
-  BowVector Transform(const DescriptorBlock& rows) const { return base_.Transform(rows); }
-  // The bag of words of the next keyframe (index size()).
-  void Append(BowVector words);
+  BowVector Transform(const DescriptorBlock& rows, std::vector<uint32_t>* nodes = nullptr) const {
+    return base_.Transform(rows, nodes);
+  }
+  // The bag of words of the next keyframe (index size()) and the
+  // direct-level node of each of its feature rows (Transform's `nodes`).
+  void Append(BowVector words, std::vector<uint32_t> nodes);
+  // The direct-level node of each feature row of keyframe `index` (<
+  // size()), as BowIndex::DirectNodes.
+  Span<uint32_t> DirectNodes(uint32_t index) const;
 
   // The best `max_results` keyframes by BowScore with `query`, best first
   // (ties: the lower index), over the stored and the added keyframes; with
   // `among` (sorted, unique indices < size()), only those.
+  // Under `deadline`, as BowIndex::Query: stops once it has passed and sets
+  // *stopped (the added keyframes are then not scored).
   std::vector<BowIndex::Scored> Query(const BowVector& query, size_t max_results,
-                                      const std::vector<uint32_t>* among) const;
+                                      const std::vector<uint32_t>* among,
+                                      const Deadline& deadline = Deadline(),
+                                      bool* stopped = nullptr) const;
   // The same for `among`, scoring each of them in full instead of walking
   // the inverted file; Query does this when `among` is a small share of the
   // database (a cluster and its neighbours).
@@ -45,6 +55,7 @@ class GrowingBowIndex {
 
   BowIndex base_;
   std::vector<BowVector> added_;
+  std::vector<std::vector<uint32_t>> added_nodes_;
   // word -> the added keyframes (offsets into added_) that have it, ascending.
   std::unordered_map<uint32_t, std::vector<uint32_t>> added_postings_;
 };

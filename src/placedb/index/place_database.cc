@@ -277,11 +277,12 @@ void PlaceDatabase::Add(Keyframe keyframe, const FeatureSet& features) {
   // Everything that takes time happens before the readers are held: the
   // bag of words, and (when the storage is full) a grown copy.
   std::optional<BowVector> words;
+  std::vector<uint32_t> nodes;
   if (m.bow) {
     // The rows in the database's order (SURF: grouped by sign), so that the
-    // vector is the one a rebuilt index computes.
+    // vector and the direct nodes are the ones a rebuilt index computes.
     const GroupedFeatures grouped = GroupByLaplacian(features);
-    words = m.bow->Transform(grouped.block);
+    words = m.bow->Transform(grouped.block, &nodes);
   }
   const size_t rows = features.keypoints.size();
   std::optional<Database> grown;
@@ -297,7 +298,7 @@ void PlaceDatabase::Add(Keyframe keyframe, const FeatureSet& features) {
     } else {
       m.db.AddKeyframe(keyframe, features);
     }
-    if (words) m.bow->Append(std::move(*words));
+    if (words) m.bow->Append(std::move(*words), std::move(nodes));
     m.clusters.Add(m.db.keyframe(m.db.size() - 1));
     m.removed.push_back(0);
     ++m.pending;

@@ -275,7 +275,12 @@ QueryResult RunStages(const Database& db, const FeatureSet& query, const QueryOp
 
   // Retrieve.
   Timer stage;
-  const std::vector<Candidate> candidates = retriever.Retrieve(db, query, among);
+  // Under a deadline the retriever may stop early (bag-of-words scoring of a
+  // large database takes milliseconds): the match stage then takes the
+  // candidates found so far, the first always.
+  bool retrieve_stopped = false;
+  const std::vector<Candidate> candidates =
+      retriever.Retrieve(db, query, among, Deadline(clock, deadline), &retrieve_stopped);
   result.times.retrieve_ms = stage.ElapsedMs();
 
   // Match: contiguous chunks of the candidates, each keeping its best; the
@@ -380,7 +385,7 @@ QueryResult RunStages(const Database& db, const FeatureSet& query, const QueryOp
   }
   if (options.verify.enabled) result.num_verified = ranked.size();
   result.times.verify_ms = options.verify.enabled ? stage.ElapsedMs() : 0.0;
-  result.deadline_reached = stopped.load();
+  result.deadline_reached = stopped.load() || retrieve_stopped;
 
   // Rank and decide.
   std::sort(ranked.begin(), ranked.end(), RanksFirst);
@@ -491,7 +496,7 @@ QueryResult QueryDatabase(const Database& db, const FeatureSet& query, const Que
   std::unique_ptr<Retriever> own_retriever;
   const Retriever* retriever = context.retriever;
   if (retriever == nullptr) {
-    own_retriever = Retriever::Create(options.retrieval, db, context.bow);
+    own_retriever = Retriever::Create(options.retrieval, db, context.bow, options.match);
     retriever = own_retriever.get();
   }
   const std::vector<uint32_t>* restriction = context.among ? &among : nullptr;
@@ -557,8 +562,7 @@ MatchDetail MatchKeyframe(const Database& db, const FeatureSet& query, size_t in
   PLACEDB_CHECK_OPTIONS(options);
   ValidateQueryFeatures(query, db);
   if (index >= db.size()) {
-    PLACEDB_THROW_INVALID("keyframe index ", index, " is out of range (", db.size(),
-                          " keyframes)");
+    PLACEDB_THROW_INVALID("keyframe index ", index, " is out of range (", db.size(), " keyframes)");
   }
   const GroupedFeatures grouped = GroupByLaplacian(query);
   MatchDetail d;
@@ -577,8 +581,7 @@ MatchDetail MatchKeyframe(const Database& db, const FeatureSet& query, size_t in
     VerifyResult v = VerifyKeyframe(db, index, grouped.set, d.matches, options.verify);
     d.verified = true;
     d.num_inliers = v.num_inliers;
-    d.inliers = v.estimated ? std::move(v.inlier_mask)
-                            : std::vector<uint8_t>(d.matches.size(), 0);
+    d.inliers = v.estimated ? std::move(v.inlier_mask) : std::vector<uint8_t>(d.matches.size(), 0);
   }
   return d;
 }

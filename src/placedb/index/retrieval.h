@@ -15,6 +15,8 @@
 
 #include "placedb/feature/types.h"
 #include "placedb/index/database.h"
+#include "placedb/match/ratio_matcher.h"
+#include "placedb/util/timer.h"
 
 namespace placedb {
 
@@ -32,6 +34,12 @@ struct RetrievalOptions {
   // bow (and cluster over a database with a BoW index): keyframes passed on
   // to matching, best bag-of-words score first. Range [1, 100000]. Default 40.
   int bow_candidates = 40;
+  // bow and cluster: of those, the ones with the most guided matches (query
+  // and keyframe features under the same vocabulary node at the index's
+  // direct level, CountGuidedMatches) go on to the full match stage, at a
+  // small share of its cost; 0 = all of them, in bag-of-words order. Range
+  // [0, 100000]. Default 10 (the verify stage's default candidates).
+  int guided_candidates = 10;
   // cluster: the prior's cluster and its neighbours up to this many hops of
   // the neighbour graph are searched first. Range [0, 64]. Default 1.
   int cluster_hops = 1;
@@ -57,14 +65,19 @@ class Retriever {
 
   // The keyframes of `db` to examine for `query`, best prior first. With
   // `among` (sorted, unique indices < db.size()), only those may be returned.
+  // Once `deadline` has passed a retriever may stop early with the
+  // candidates found so far and set *stopped.
   virtual std::vector<Candidate> Retrieve(const Database& db, const FeatureSet& query,
-                                          const std::vector<uint32_t>* among) const = 0;
+                                          const std::vector<uint32_t>* among,
+                                          const Deadline& deadline, bool* stopped) const = 0;
 
   // The retriever for `options` over `db`. bow needs `bow`, the database's
   // index (std::invalid_argument naming the fix when it is nullptr). cluster
-  // retrieves through bow when `bow` is given, else exhaustively.
+  // retrieves through bow when `bow` is given, else exhaustively. `match`:
+  // the rules guided matching counts by.
   static std::unique_ptr<Retriever> Create(const RetrievalOptions& options, const Database& db,
-                                           const GrowingBowIndex* bow = nullptr);
+                                           const GrowingBowIndex* bow = nullptr,
+                                           const MatchOptions& match = MatchOptions());
 };
 
 }  // namespace placedb

@@ -311,6 +311,19 @@ TEST_F(SearchTest, DeadlineStopsEarlyAndSaysSo) {
     EXPECT_FALSE(full.deadline_reached);
     EXPECT_EQ(full.ranked, db.Query(Features(42)).ranked);
     EXPECT_DOUBLE_EQ(full.coverage, 1.0);
+    // Bag-of-words search: the scoring itself stops at the deadline, and the
+    // best candidate found so far is still examined and verified.
+    QueryOptions bow;
+    bow.retrieval.method = RetrievalMethod::kBow;
+    bow.deadline_ms = 1e-6;
+    const QueryResult late = db.Query(Features(42), bow);
+    EXPECT_TRUE(late.deadline_reached);
+    EXPECT_EQ(late.num_examined, 1u);
+    bow.deadline_ms = 1e6;
+    const QueryResult on_time = db.Query(Features(42), bow);
+    EXPECT_FALSE(on_time.deadline_reached);
+    bow.deadline_ms = 0.0;
+    EXPECT_EQ(on_time.ranked, db.Query(Features(42), bow).ranked);
   }
 }
 

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 #include "placedb/match/hamming.h"
@@ -174,6 +175,125 @@ int Match(const DescriptorBlock& query, const DescriptorBlock& db, const Metric&
 }
 
 }  // namespace
+
+namespace {
+
+uint32_t PairDistance(const OrbMetric&, const DescriptorBlock& a, int i, const DescriptorBlock& b,
+                      int j) {
+  return Hamming(a.Row(i), b.Row(j), a.row_bytes);
+}
+float PairDistance(const SurfMetric&, const DescriptorBlock& a, int i, const DescriptorBlock& b,
+                   int j) {
+  return L2Squared(reinterpret_cast<const float*>(a.Row(i)),
+                   reinterpret_cast<const float*>(b.Row(j)),
+                   a.row_bytes / static_cast<int>(sizeof(float)));
+}
+bool SignsAgree(const OrbMetric&, const DescriptorBlock&, int, const DescriptorBlock&, int) {
+  return true;
+}
+bool SignsAgree(const SurfMetric& m, const DescriptorBlock& a, int i, const DescriptorBlock& b,
+                int j) {
+  if (!m.use_signs) return true;
+  const int8_t sa = RowSign(a, i), sb = RowSign(b, j);
+  return sa == 0 || sb == 0 || sa == sb;
+}
+
+}  // namespace
+
+int GuidedLabels::Find(uint32_t label) const {
+  if (!dense.empty()) {
+    const uint32_t x = label - lowest;  // wraps for labels below: out of range
+    return x < dense.size() ? dense[x] : -1;
+  }
+  const auto it = std::lower_bound(distinct.begin(), distinct.end(), label);
+  return it != distinct.end() && *it == label ? static_cast<int>(it - distinct.begin()) : -1;
+}
+
+namespace {
+
+// Each keyframe row t updates the two nearest of the query rows of its
+// label (distance(q, t)); then the query rows that found a partner are
+// judged.
+template <typename Metric, typename DistanceFn>
+int CountGuided(const DescriptorBlock& query, const GuidedLabels& labels,
+                const std::vector<uint32_t>& begin, const std::vector<uint32_t>& order,
+                const DescriptorBlock& db, const uint32_t* db_labels, const Metric& metric,
+                const DistanceFn& distance) {
+  using Distance = typename Metric::Distance;
+  thread_local std::vector<TwoNearestOf<Distance>> nearest;
+  nearest.assign(static_cast<size_t>(query.rows), TwoNearestOf<Distance>());
+  for (int t = 0; t < db.rows; ++t) {
+    const int l = labels.Find(db_labels[t]);
+    if (l < 0) continue;
+    for (uint32_t k = begin[l]; k < begin[l + 1]; ++k) {
+      const int q = static_cast<int>(order[k]);
+      if (SignsAgree(metric, query, q, db, t)) nearest[q].Update(distance(q, t), t);
+    }
+  }
+  int count = 0;
+  for (const TwoNearestOf<Distance>& nn : nearest) count += metric.Passes(nn);
+  return count;
+}
+
+}  // namespace
+
+GuidedMatcher::GuidedMatcher(const DescriptorBlock& query, const uint32_t* labels, size_t rows,
+                             const MatchOptions& options)
+    : query_(query), options_(options) {
+  if (rows != static_cast<size_t>(query.rows)) {
+    PLACEDB_THROW_INVALID("guided matching needs one label per query row (", rows, " for ",
+                          query.rows, " rows)");
+  }
+  std::vector<std::pair<uint32_t, uint32_t>> by_label(rows);
+  for (size_t i = 0; i < rows; ++i) by_label[i] = {labels[i], static_cast<uint32_t>(i)};
+  std::sort(by_label.begin(), by_label.end());
+  order_.reserve(rows);
+  for (size_t i = 0; i < rows; ++i) {
+    if (i == 0 || by_label[i].first != by_label[i - 1].first) {
+      labels_.distinct.push_back(by_label[i].first);
+      begin_.push_back(static_cast<uint32_t>(i));
+    }
+    order_.push_back(by_label[i].second);
+  }
+  begin_.push_back(static_cast<uint32_t>(rows));
+  // A keyframe row finds its label's query rows by a table lookup (a
+  // vocabulary level's nodes have neighbouring ids) when the labels span
+  // little, else by binary search.
+  if (!labels_.distinct.empty()) {
+    const uint64_t span =
+        static_cast<uint64_t>(labels_.distinct.back()) - labels_.distinct.front() + 1;
+    if (span <= (uint64_t{1} << 20)) {
+      labels_.lowest = labels_.distinct.front();
+      labels_.dense.assign(span, -1);
+      for (size_t l = 0; l < labels_.distinct.size(); ++l)
+        labels_.dense[labels_.distinct[l] - labels_.lowest] = static_cast<int32_t>(l);
+    }
+  }
+}
+
+int GuidedMatcher::Count(const DescriptorBlock& db, const uint32_t* labels, size_t rows) const {
+  if (query_.type != db.type) {
+    PLACEDB_THROW_INVALID("cannot match ", FeatureTypeName(query_.type), " descriptors against ",
+                          FeatureTypeName(db.type), " descriptors");
+  }
+  if (rows != static_cast<size_t>(db.rows)) {
+    PLACEDB_THROW_INVALID("guided matching needs one label per keyframe row (", rows, " for ",
+                          db.rows, " rows)");
+  }
+  if (query_.rows == 0 || db.rows == 0) return 0;
+  if (query_.row_bytes != db.row_bytes) {
+    PLACEDB_THROW_INVALID("descriptor widths differ: ", query_.row_bytes, " vs ", db.row_bytes,
+                          " bytes");
+  }
+  if (query_.type == FeatureType::kOrb) {
+    const OrbMetric metric(options_);
+    return CountGuided(query_, labels_, begin_, order_, db, labels, metric,
+                       [&](int q, int t) { return PairDistance(metric, query_, q, db, t); });
+  }
+  const SurfMetric metric(options_);
+  return CountGuided(query_, labels_, begin_, order_, db, labels, metric,
+                     [&](int q, int t) { return PairDistance(metric, query_, q, db, t); });
+}
 
 int MatchDescriptors(const DescriptorBlock& query, const DescriptorBlock& db,
                      const MatchOptions& options, std::vector<cv::DMatch>* matches) {

@@ -87,4 +87,38 @@ struct MatchOptions {
 int MatchDescriptors(const DescriptorBlock& query, const DescriptorBlock& db,
                      const MatchOptions& options, std::vector<cv::DMatch>* matches = nullptr);
 
+// Guided matching (DBoW2's direct index; ORB-SLAM's search by bag of words),
+// to rank candidates cheaply: a query row is compared only with the
+// keyframe rows of its own label (the vocabulary node both descend
+// through), and counts when its nearest among them passes the ratio test
+// and the distance limit (and, SURF, has its Laplacian sign). No one-to-one
+// rule or cross-check: an estimate of MatchDescriptors' count at a small
+// share of its distances.
+// The distinct labels of guided matching's query rows, and where each is.
+struct GuidedLabels {
+  std::vector<uint32_t> distinct;  // ascending
+  uint32_t lowest = 0;
+  std::vector<int32_t> dense;  // label - lowest -> index in distinct, -1: none (may be empty)
+  // Index of `label` in distinct, -1 when the query has no row of it.
+  int Find(uint32_t label) const;
+};
+
+class GuidedMatcher {
+ public:
+  // `query` (a view that must outlive this) and one label per row.
+  GuidedMatcher(const DescriptorBlock& query, const uint32_t* labels, size_t rows,
+                const MatchOptions& options);
+  // The count against a keyframe's rows `db` with one label per row.
+  // std::invalid_argument for a label count other than db.rows, or
+  // descriptors of another type or width.
+  int Count(const DescriptorBlock& db, const uint32_t* labels, size_t rows) const;
+
+ private:
+  DescriptorBlock query_;
+  MatchOptions options_;
+  GuidedLabels labels_;
+  std::vector<uint32_t> begin_;  // label i's rows: order_[begin_[i], begin_[i + 1])
+  std::vector<uint32_t> order_;  // query rows by label, then row
+};
+
 }  // namespace placedb

@@ -389,6 +389,46 @@ TEST(RatioMatcherTest, MatchListsAreSortedUniqueAndCounted) {
 
 // Check() rejects every out-of-range option with a message naming the field,
 // the range and the value, and accepts the defaults.
+// Guided matching compares a query row only with the keyframe rows of its
+// label: a set against itself matches every row; against the same rows
+// under other labels, none; a row whose label the keyframe lacks, none.
+TEST(RatioMatcherTest, GuidedMatchesCompareOnlyRowsOfOneLabel) {
+  const FeatureSet set = RandomOrb(60, 11);
+  const DescriptorBlock block = MakeDescriptorBlock(set, nullptr);
+  std::vector<uint32_t> labels(60), shifted(60);
+  for (uint32_t i = 0; i < 60; ++i) {
+    labels[i] = i % 7;
+    shifted[i] = i % 7 + 7;
+  }
+  MatchOptions options = Plain();
+  options.max_hamming = 0;
+  const GuidedMatcher guided(block, labels.data(), labels.size(), options);
+  EXPECT_EQ(guided.Count(block, labels.data(), labels.size()), 60);
+  EXPECT_EQ(guided.Count(block, shifted.data(), shifted.size()), 0);
+  // One label in common (label 3): only its 9 rows can match.
+  std::vector<uint32_t> one(60, 100);
+  for (uint32_t i = 3; i < 60; i += 7) one[i] = 3;
+  EXPECT_EQ(guided.Count(block, one.data(), one.size()), 9);
+  // Against rows of their own label that are not their copies, random
+  // descriptors mostly fail the ratio test; never more than the plain rule
+  // over all rows finds, which compares them with more rows.
+  const FeatureSet other = RandomOrb(60, 12);
+  const DescriptorBlock other_block = MakeDescriptorBlock(other, nullptr);
+  EXPECT_LE(guided.Count(other_block, labels.data(), labels.size()), 60);
+  // Labels must cover the rows; types must agree.
+  EXPECT_TRUE(testing_util::ThrowsWith<std::invalid_argument>(
+      [&] { guided.Count(block, labels.data(), 59); }, "one label per keyframe row"));
+  EXPECT_TRUE(testing_util::ThrowsWith<std::invalid_argument>(
+      [&] { GuidedMatcher(block, labels.data(), 59, options); }, "one label per query row"));
+  FeatureSet surf;
+  surf.type = FeatureType::kSurf;
+  surf.descriptors = cv::Mat(60, 64, CV_32F, cv::Scalar(0.1f));
+  surf.keypoints.resize(60);
+  EXPECT_TRUE(testing_util::ThrowsWith<std::invalid_argument>(
+      [&] { guided.Count(MakeDescriptorBlock(surf, nullptr), labels.data(), 60); },
+      "cannot match"));
+}
+
 TEST(RatioMatcherTest, CheckRejectsOutOfRangeOptions) {
   EXPECT_EQ(MatchOptions().Check(), "");
   EXPECT_EQ(Plain().Check(), "");

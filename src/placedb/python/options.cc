@@ -111,8 +111,12 @@ const std::vector<OptionSpec<QueryOptions>>& QuerySpecs() {
                 "needs a database built with index='bow') or 'cluster' (the prior's "
                 "spatial-locality clusters first, then the rest when the answer is weak)",
                 PLACEDB_FIELD(retrieval.method), ParseRetrievalMethod, RetrievalMethodName),
-      Int<O>("bow_candidates", "bow: keyframes matched, best bag-of-words score first [1, 100000]",
+      Int<O>("bow_candidates", "bow: keyframes scored best by bag of words [1, 100000]",
              PLACEDB_FIELD(retrieval.bow_candidates)),
+      Int<O>("guided_candidates",
+             "bow: of those, the ones with the most guided matches (same vocabulary node) are "
+             "matched in full; 0 = all [0, 100000]",
+             PLACEDB_FIELD(retrieval.guided_candidates)),
       Int<O>("cluster_hops", "cluster: neighbour clusters searched around the prior's [0, 64]",
              PLACEDB_FIELD(retrieval.cluster_hops)),
       Double<O>("cluster_fallback_score",

@@ -19,4 +19,19 @@ class Timer {
   Clock::time_point start_;
 };
 
+// A time budget on a running Timer: passed() once `ms` milliseconds have
+// elapsed since the timer started. The default (no timer, or ms <= 0) never
+// passes.
+class Deadline {
+ public:
+  Deadline() = default;
+  Deadline(const Timer& clock, double ms) : clock_(&clock), ms_(ms) {}
+  bool enabled() const { return clock_ != nullptr && ms_ > 0.0; }
+  bool passed() const { return enabled() && clock_->ElapsedMs() >= ms_; }
+
+ private:
+  const Timer* clock_ = nullptr;
+  double ms_ = 0.0;
+};
+
 }  // namespace placedb
