@@ -261,6 +261,7 @@ int main(int argc, char** argv) {
   int num_queries = 200, exhaustive_queries = 20, threads_build = 0, features = 500;
   int fast_threshold = 5, bow_candidates = placedb::RetrievalOptions().bow_candidates;
   int guided_candidates = placedb::RetrievalOptions().guided_candidates;
+  std::vector<int> compare_guided = {0, 10};
   double deadline_ms = 2.0, cluster_radius = 0.5;
   std::string out = "out/bench/scale", json_path, data = PLACEDB_DATA_DIR;
   app.add_option("--sizes", sizes, "database sizes, keyframes")
@@ -283,8 +284,12 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 100000))
       ->capture_default_str();
   app.add_option("--guided-candidates", guided_candidates,
-                 "of those, matched in full after guided ranking (0: all); bow also runs "
-                 "unguided")
+                 "of those, matched in full after guided ranking (0: all)")
+      ->check(CLI::Range(0, 100000))
+      ->capture_default_str();
+  app.add_option("--compare-guided", compare_guided,
+                 "bow also runs with these --guided-candidates (0: unguided, all matched)")
+      ->delimiter(',')
       ->check(CLI::Range(0, 100000))
       ->capture_default_str();
   app.add_option("--cluster-radius", cluster_radius,
@@ -416,9 +421,13 @@ int main(int argc, char** argv) {
       for (const std::string& m : modes) {
         runs.push_back(RunMode(db, queries, m == "exhaustive" ? subset : all, m, 0.0, num_sources,
                                bow_candidates, guided_candidates));
-        if (m == "bow" && guided_candidates > 0) {
-          // The same without guided ranking: every bow candidate matched in full.
-          runs.push_back(RunMode(db, queries, all, m, 0.0, num_sources, bow_candidates, 0));
+        if (m == "bow") {
+          // The same with other numbers matched in full after guided
+          // ranking (0: none, every bow candidate matched in full).
+          for (const int g : compare_guided) {
+            if (g == guided_candidates) continue;
+            runs.push_back(RunMode(db, queries, all, m, 0.0, num_sources, bow_candidates, g));
+          }
         }
         if (m == "bow") {
           runs.push_back(RunMode(db, queries, all, m, deadline_ms, num_sources, bow_candidates,
@@ -457,7 +466,10 @@ int main(int argc, char** argv) {
         const double recall = ModeRun::Recall(r.correct, r.queries);
         const double place = ModeRun::Recall(r.correct_place, r.queries);
         std::string name = r.mode;
-        if (r.mode != "exhaustive" && r.guided_candidates == 0) name += ", unguided";
+        if (r.mode != "exhaustive" && r.guided_candidates != guided_candidates) {
+          name += r.guided_candidates == 0 ? std::string(", unguided")
+                                           : fmt::format(", guided {}", r.guided_candidates);
+        }
         if (r.deadline_ms > 0) name += fmt::format(", deadline {:g} ms", r.deadline_ms);
         nlohmann::json m = {
             {"mode", r.mode},

@@ -115,8 +115,10 @@ def scale_table(j):
     for s in j["sizes"]:
         for m in s["modes"]:
             name = m["mode"]
-            if m["mode"] != "exhaustive" and m.get("guided_candidates", 0) == 0:
-                name += f", unguided (all {j['bow_candidates']} matched)"
+            guided = m.get("guided_candidates", 0)
+            if m["mode"] != "exhaustive" and guided != j.get("guided_candidates", 0):
+                name += (f", unguided (all {j['bow_candidates']} matched)" if guided == 0
+                         else f", {guided} matched after guided ranking")
             if m["deadline_ms"] > 0:
                 name += f", deadline {m['deadline_ms']:g} ms"
             if m["mode"] == "exhaustive":

@@ -11,6 +11,7 @@
 #include "placedb/util/checksum.h"
 #include "placedb/util/file_io.h"
 #include "placedb/util/options.h"
+#include "placedb/util/parallel.h"
 #include "placedb/util/progress.h"
 #include "placedb/util/thread_pool.h"
 
@@ -83,10 +84,8 @@ BowVector MakeBowVector(const Vocabulary& vocabulary, int direct_level,
   }
   std::vector<uint32_t> words(block.rows);
   if (nodes != nullptr) nodes->assign(block.rows, 0);
-  for (int r = 0; r < block.rows; ++r) {
-    words[r] = nodes != nullptr ? vocabulary.Word(block.Row(r), direct_level, &(*nodes)[r])
-                                : vocabulary.Word(block.Row(r));
-  }
+  vocabulary.Words(block.data, block.rows, nodes != nullptr ? direct_level : -1, words.data(),
+                   nodes != nullptr ? nodes->data() : nullptr);
   std::sort(words.begin(), words.end());
   // tf-idf: each occurrence adds the word's idf; then L1 normalisation.
   BowVector v;
@@ -266,8 +265,10 @@ BowIndex BowIndex::FromImage(flat_file::Image image, const std::string& shown,
   PLACEDB_CHECK(vocabulary != nullptr, "a bag-of-words index needs a vocabulary");
   if (!HostIsLittleEndian()) PLACEDB_THROW_RUNTIME("placedb indexes need a little-endian host");
   auto fail = [&](const auto&... what) { PLACEDB_THROW_RUNTIME(shown, ": ", what...); };
-  flat_file::CheckSealed(image, kBowIndexMagic, kBowIndexFormatVersion, "bag-of-words index",
-                         shown);
+  // The payload's checksum runs below, beside the checks that read the
+  // payload (all of them bounded by the header, which is checked here).
+  flat_file::CheckSealedHeader(image, kBowIndexMagic, kBowIndexFormatVersion,
+                               "bag-of-words index", shown);
   const auto header = flat_file::ReadHeader<BowIndexFileHeader>(image.data);
   const Vocabulary& vocab = *vocabulary;
   if (header.vocabulary_checksum != vocab.checksum()) {
@@ -339,55 +340,78 @@ BowIndex BowIndex::FromImage(flat_file::Image image, const std::string& shown,
         n.level == direct_level || (n.num_children == 0 && n.level < direct_level);
   }
   const uint32_t* direct_nodes = image.At<uint32_t>(at.direct_nodes);
-  for (uint64_t e = 0; e < features; ++e) {
-    const uint32_t node = direct_nodes[e];
-    if (node >= vocab.num_nodes() || !direct_node_ok[node])
-      fail("direct entry ", e, " (node ", node, ") is not a node of level ", direct_level);
-  }
-
-  // The keyframe vectors.
   const uint64_t* vector_offsets = image.At<uint64_t>(at.vector_offsets);
   const uint32_t* vector_words = image.At<uint32_t>(at.vector_words);
   const float* vector_weights = image.At<float>(at.vector_weights);
   check_offsets(vector_offsets, num_keyframes, entries, "vector");
-  // The inverted file must hold exactly the vectors' (word, keyframe,
-  // weight) entries, transposed. Both sides are summed as a multiset hash
-  // in one sequential pass each (a random access per posting into the
-  // vectors would dominate the open time of a large database); with the
-  // counts equal, a difference shows as different sums, but for a
-  // deliberately forged file (and the file is checksummed as a whole).
-  uint64_t vector_hash = 0;
-  for (uint32_t i = 0; i < num_keyframes; ++i) {
-    double sum = 0.0;
-    for (uint64_t e = vector_offsets[i]; e < vector_offsets[i + 1]; ++e) {
-      vector_hash += EntryHash(vector_words[e], i, vector_weights[e]);
-      if (vector_words[e] >= num_words ||
-          (e > vector_offsets[i] && vector_words[e - 1] >= vector_words[e]))
-        fail("keyframe ", i, "'s words are not ascending and below ", num_words);
-      if (!(std::isfinite(vector_weights[e]) && vector_weights[e] > 0.0f))
-        fail("keyframe ", i, " has weight ", vector_weights[e], " (finite and > 0 expected)");
-      sum += vector_weights[e];
-    }
-    if (vector_offsets[i + 1] > vector_offsets[i] && std::abs(sum - 1.0) > 1e-3)
-      fail("keyframe ", i, "'s weights sum to ", sum, ", not 1");
-  }
-
-  // The inverted file: postings sorted by keyframe within each word, as
-  // many as the vectors' entries, and the same entries (the hashes).
   const uint64_t* word_offsets = image.At<uint64_t>(at.word_offsets);
   const Posting* postings = image.At<Posting>(at.postings);
   check_offsets(word_offsets, num_words, entries, "word");
-  uint64_t posting_hash = 0;
-  for (uint32_t word = 0; word < num_words; ++word) {
-    for (uint64_t p = word_offsets[word]; p < word_offsets[word + 1]; ++p) {
-      const uint32_t k = postings[p].keyframe;
-      if (k >= num_keyframes) fail("a posting of word ", word, " names keyframe ", k);
-      if (p > word_offsets[word] && postings[p - 1].keyframe >= k)
-        fail("the postings of word ", word, " are not sorted by keyframe");
-      posting_hash += EntryHash(word, k, postings[p].weight);
+
+  // Every direct entry a node of the direct level.
+  const auto check_direct = [&] {
+    for (uint64_t e = 0; e < features; ++e) {
+      const uint32_t node = direct_nodes[e];
+      if (node >= vocab.num_nodes() || !direct_node_ok[node])
+        fail("direct entry ", e, " (node ", node, ") is not a node of level ", direct_level);
     }
-  }
-  if (posting_hash != vector_hash)
+  };
+  // The keyframe vectors [first, last): words ascending and below W,
+  // weights finite, positive, summing to 1. The inverted file must hold
+  // exactly the vectors' (word, keyframe, weight) entries, transposed. Both
+  // sides are summed as a multiset hash in sequential passes (a random
+  // access per posting into the vectors would dominate the open time of a
+  // large database); with the counts equal, a difference shows as
+  // different sums, but for a deliberately forged file (and the file is
+  // checksummed as a whole). The sums add across ranges.
+  const auto hash_vectors = [&](uint32_t first, uint32_t last, uint64_t* hash) {
+    uint64_t h = 0;
+    for (uint32_t i = first; i < last; ++i) {
+      double sum = 0.0;
+      for (uint64_t e = vector_offsets[i]; e < vector_offsets[i + 1]; ++e) {
+        h += EntryHash(vector_words[e], i, vector_weights[e]);
+        if (vector_words[e] >= num_words ||
+            (e > vector_offsets[i] && vector_words[e - 1] >= vector_words[e]))
+          fail("keyframe ", i, "'s words are not ascending and below ", num_words);
+        if (!(std::isfinite(vector_weights[e]) && vector_weights[e] > 0.0f))
+          fail("keyframe ", i, " has weight ", vector_weights[e], " (finite and > 0 expected)");
+        sum += vector_weights[e];
+      }
+      if (vector_offsets[i + 1] > vector_offsets[i] && std::abs(sum - 1.0) > 1e-3)
+        fail("keyframe ", i, "'s weights sum to ", sum, ", not 1");
+    }
+    *hash = h;
+  };
+  // The postings of words [first, last): keyframes below K, ascending
+  // within a word.
+  const auto hash_postings = [&](uint32_t first, uint32_t last, uint64_t* hash) {
+    uint64_t h = 0;
+    for (uint32_t word = first; word < last; ++word) {
+      for (uint64_t p = word_offsets[word]; p < word_offsets[word + 1]; ++p) {
+        const uint32_t k = postings[p].keyframe;
+        if (k >= num_keyframes) fail("a posting of word ", word, " names keyframe ", k);
+        if (p > word_offsets[word] && postings[p - 1].keyframe >= k)
+          fail("the postings of word ", word, " are not sorted by keyframe");
+        h += EntryHash(word, k, postings[p].weight);
+      }
+    }
+    *hash = h;
+  };
+  // At once, halves of the vectors and of the postings (split where half
+  // the entries lie), the direct index and the payload's checksum, whose
+  // failure is reported first.
+  const uint32_t mid_keyframe = static_cast<uint32_t>(
+      std::upper_bound(vector_offsets, vector_offsets + num_keyframes, entries / 2) -
+      vector_offsets);
+  const uint32_t mid_word = static_cast<uint32_t>(
+      std::upper_bound(word_offsets, word_offsets + num_words, entries / 2) - word_offsets);
+  uint64_t vector_hash[2] = {0, 0}, posting_hash[2] = {0, 0};
+  RunTogether({[&] { flat_file::CheckPayloadChecksum(image, shown); }, check_direct,
+               [&] { hash_vectors(0, mid_keyframe, &vector_hash[0]); },
+               [&] { hash_vectors(mid_keyframe, num_keyframes, &vector_hash[1]); },
+               [&] { hash_postings(0, mid_word, &posting_hash[0]); },
+               [&] { hash_postings(mid_word, num_words, &posting_hash[1]); }});
+  if (posting_hash[0] + posting_hash[1] != vector_hash[0] + vector_hash[1])
     fail("the inverted file disagrees with the keyframe vectors (not their transpose)");
 
   BowIndex index;
@@ -465,13 +489,21 @@ std::vector<BowIndex::Scored> BowIndex::Query(const BowVector& query, size_t max
   // inner loop has no branch: which weight is smaller, and whether a
   // keyframe is new, are coin flips for a branch predictor.
   const bool timed = deadline.enabled();
+  const Timer scoring;
+  size_t postings_done = 0;
   const auto accumulate = [&](auto with_among) {
     for (size_t i = 0; i < n; ++i) {
-      // (Not before a keyframe has a score: the query examines at least one.)
-      if (timed && i % kDeadlineCheckWords == kDeadlineCheckWords - 1 && num_touched > 0 &&
-          deadline.passed()) {
-        if (stopped != nullptr) *stopped = true;
-        break;
+      // Under a deadline, a word is scored only while its postings, at the
+      // time per posting so far, still fit before it (not before a keyframe
+      // has a score: the query examines at least one).
+      if (timed && num_touched > 0) {
+        const uint64_t postings =
+            word_offsets_[query.words[i] + 1] - word_offsets_[query.words[i]];
+        if (!deadline.Fits(static_cast<double>(postings) * scoring.ElapsedMs() /
+                           static_cast<double>(std::max<size_t>(postings_done, 1)))) {
+          if (stopped != nullptr) *stopped = true;
+          break;
+        }
       }
       // The posting lists lie far apart: fetch the offsets of a word 8 ahead
       // and the first postings of a word 4 ahead (its offsets are in cache
@@ -482,6 +514,7 @@ std::vector<BowIndex::Scored> BowIndex::Query(const BowVector& query, size_t max
       if (!(q > 0.0f)) continue;
       const Posting* p = postings_ + word_offsets_[query.words[i]];
       const Posting* end = postings_ + word_offsets_[query.words[i] + 1];
+      postings_done += static_cast<size_t>(end - p);
       for (; p != end; ++p) {
         const uint32_t k = p->keyframe;
         float term = std::min(q, p->weight);

@@ -157,12 +157,12 @@ class BowIndex {
   // score nothing. Throws std::invalid_argument for an unsorted query, a word
   // beyond the vocabulary, or a bad `among`.
   //
-  // Under `deadline` the scoring stops once it has passed (checked every
-  // kDeadlineCheckWords query words, once some keyframe has a score) and
-  // *stopped (when given) is set: the scores are then those of the query's
-  // words scored so far, a partial ranking, so that a query's time budget
-  // also bounds this stage.
-  static constexpr size_t kDeadlineCheckWords = 16;
+  // Under `deadline`, once some keyframe has a score, a query word is
+  // scored only while its posting list, at the time per posting so far,
+  // still ends before the deadline; else the scoring stops and *stopped
+  // (when given) is set: the scores are then those of the query's words
+  // scored so far, a partial ranking, so that a query's time budget also
+  // bounds this stage.
   std::vector<Scored> Query(const BowVector& query, size_t max_results,
                             const std::vector<uint32_t>* among = nullptr,
                             const Deadline& deadline = Deadline(), bool* stopped = nullptr) const;

@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <numeric>
 #include <type_traits>
 #include <unordered_set>
@@ -14,6 +15,7 @@
 #include "placedb/util/checksum.h"
 #include "placedb/util/file_io.h"
 #include "placedb/util/json_reader.h"
+#include "placedb/util/parallel.h"
 
 namespace placedb {
 namespace fs = std::filesystem;
@@ -530,12 +532,11 @@ void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const 
     if (Checksum64(b + s.offset, s.bytes) != s.checksum)
       fail(what, " checksum mismatch (the file is corrupted)");
   };
+  // The small sections the keyframe records read; the large ones (hundreds
+  // of MB at 10 000 keyframes) below, once the records say where each
+  // keyframe's features lie.
   verify(keyframes, "keyframe section");
   verify(strings, "string section");
-  if (with_features) {
-    verify(keypoints, "keypoint section");
-    verify(descriptors, "descriptor section");
-  }
 
   // Keyframe records: every value checked; ranges back to back.
   std::vector<Keyframe> all(num_keyframes);
@@ -594,23 +595,58 @@ void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const 
   if (expected_offset != num_features)
     fail("the keyframes own ", expected_offset, " features but the file holds ", num_features);
 
-  // Keep the subset; check its keypoints in place.
+  // The subset to keep, and its keypoints checked in place.
   const std::vector<size_t> keep = SelectKeyframes(options.subset, num_keyframes, ids);
   const auto* file_keypoints =
       reinterpret_cast<const cv::KeyPoint*>(b + keypoints.offset);  // 64-byte aligned
-  keyframes_.reserve(keep.size());
-  for (const size_t i : keep) {
-    if (with_features) {
+  if (with_features) {
+    std::vector<char> kept(num_keyframes, 0);
+    for (const size_t i : keep) kept[i] = 1;
+    // What is wrong with the first kept keyframe whose keypoints are bad.
+    std::string bad_keypoints;
+    const auto check_keypoints = [&](size_t i) {
       for (uint32_t f = 0; f < counts[i]; ++f) {
         const cv::KeyPoint& kp = file_keypoints[offsets[i] + f];
         if (!std::isfinite(kp.pt.x) || !std::isfinite(kp.pt.y) || !std::isfinite(kp.size) ||
             !std::isfinite(kp.angle) || !std::isfinite(kp.response)) {
-          fail("keyframe ", all[i].id, " has a keypoint that is not finite");
+          bad_keypoints = "keyframe " + std::to_string(all[i].id) +
+                          " has a keypoint that is not finite";
+          return;
         }
-        if (feature_type_ == FeatureType::kSurf && (kp.class_id >= 0) != (f < positives[i]))
-          fail("keyframe ", all[i].id, ": keypoints are not grouped by Laplacian sign");
+        if (feature_type_ == FeatureType::kSurf && (kp.class_id >= 0) != (f < positives[i])) {
+          bad_keypoints = "keyframe " + std::to_string(all[i].id) +
+                          ": keypoints are not grouped by Laplacian sign";
+          return;
+        }
       }
-    }
+    };
+    // One pass over the keypoints (their ranges lie back to back, in
+    // keyframe order): a stretch of about 256 KB is hashed, then its kept
+    // keyframes' keypoints are checked while it is in cache. The
+    // descriptors are hashed at the same time, on another thread. A
+    // checksum mismatch is reported before what the keypoints show.
+    const auto hash_and_check_keypoints = [&] {
+      Checksum64Stream sum;
+      constexpr uint64_t kStretch = (256 << 10) / kf::kKeypointRecordBytes;
+      for (uint64_t i = 0; i < num_keyframes;) {
+        uint64_t j = i + 1;
+        while (j < num_keyframes && offsets[j] + counts[j] - offsets[i] <= kStretch) ++j;
+        const uint64_t first = offsets[i], last = offsets[j - 1] + counts[j - 1];
+        sum.Update(b + keypoints.offset + first * kf::kKeypointRecordBytes,
+                   static_cast<size_t>((last - first) * kf::kKeypointRecordBytes));
+        for (uint64_t k = i; k < j && bad_keypoints.empty(); ++k) {
+          if (kept[k]) check_keypoints(k);
+        }
+        i = j;
+      }
+      if (sum.Digest() != keypoints.checksum)
+        fail("keypoint section checksum mismatch (the file is corrupted)");
+    };
+    RunTogether({hash_and_check_keypoints, [&] { verify(descriptors, "descriptor section"); }});
+    if (!bad_keypoints.empty()) fail(bad_keypoints);
+  }
+  keyframes_.reserve(keep.size());
+  for (const size_t i : keep) {
     row_offset_.push_back(offsets[i]);
     feature_count_.push_back(counts[i]);
     positive_count_.push_back(positives[i]);

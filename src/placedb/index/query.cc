@@ -5,6 +5,7 @@
 #include <cmath>
 #include <filesystem>
 #include <iterator>
+#include <mutex>
 #include <unordered_set>
 
 #include "placedb/index/clusters.h"
@@ -260,6 +261,238 @@ size_t KeptAfterMatching(const QueryOptions& options) {
 
 namespace {
 
+// The ranked entry of an examined keyframe (its score the matches until
+// verified).
+RankedKeyframe Describe(const Database& db, const Examined& e, const std::string& image_dir) {
+  const Keyframe& k = db.keyframe(e.index);
+  RankedKeyframe r;
+  r.keyframe_id = k.id;
+  r.num_matches = e.num_matches;
+  r.score = e.num_matches;
+  r.pose = k.pose;
+  r.timestamp = k.timestamp;
+  r.source = k.source;
+  if (!k.image_file.empty()) {
+    r.stored_image =
+        image_dir.empty() ? k.image_file : (fs::path(image_dir) / k.image_file).string();
+  }
+  return r;
+}
+
+// The largest of the durations added so far (thread-safe): what the next
+// candidate is expected to cost at most.
+class WorstCost {
+ public:
+  void Add(double ms) {
+    double seen = worst_.load();
+    while (ms > seen && !worst_.compare_exchange_weak(seen, ms)) {
+    }
+  }
+  double Get() const { return worst_.load(); }
+
+ private:
+  std::atomic<double> worst_{0.0};
+};
+
+// What the match and verify stages give RunStages.
+struct Examination {
+  std::vector<RankedKeyframe> ranked;  // unsorted, every one verified when verification is on
+  size_t examined = 0;
+  size_t verified = 0;
+  bool stopped = false;  // the deadline cut the stages short
+  double match_ms = 0.0, verify_ms = 0.0;
+};
+
+// No deadline: every candidate matched (contiguous chunks over the pool,
+// each keeping its best; the merged best do not depend on the chunking),
+// then the best num_candidates by matches verified, skipping those that
+// cannot reach the top k.
+Examination ExamineAll(const Database& db, const GroupedFeatures& grouped,
+                       const std::vector<Candidate>& candidates, const QueryOptions& options,
+                       const QueryContext& context) {
+  Examination out;
+  Timer stage;
+  const size_t keep = KeptAfterMatching(options);
+  const bool need_matches = options.verify.enabled;
+  const size_t n = candidates.size();
+  const size_t chunks =
+      context.pool == nullptr
+          ? 1
+          : std::max<size_t>(1, std::min(n, static_cast<size_t>(context.pool->size())));
+  std::vector<std::vector<Examined>> partial(chunks);
+  auto match_chunk = [&](size_t c) {
+    std::vector<Examined>& kept = partial[c];
+    std::vector<cv::DMatch> matches;
+    for (size_t i = n * c / chunks; i < n * (c + 1) / chunks; ++i) {
+      const uint32_t index = candidates[i].index;
+      matches.clear();
+      const int good = MatchDescriptors(grouped.block, db.Descriptors(index), options.match,
+                                        need_matches ? &matches : nullptr);
+      if (good < options.min_matches) continue;
+      kept.push_back(
+          {index, db.keyframe(index).id, good, need_matches ? matches : std::vector<cv::DMatch>()});
+      if (kept.size() > 2 * keep + 64) KeepBest(&kept, keep);  // bounded memory
+    }
+    KeepBest(&kept, keep);
+  };
+  if (chunks == 1) {
+    match_chunk(0);
+  } else {
+    context.pool->ParallelFor(chunks, match_chunk);
+  }
+  out.examined = n;
+  std::vector<Examined> best;
+  for (auto& p : partial) {
+    for (auto& e : p) best.push_back(std::move(e));
+  }
+  KeepBest(&best, keep);
+  out.match_ms = stage.ElapsedMs();
+
+  stage.Restart();
+  std::vector<RankedKeyframe> ranked(best.size());
+  std::vector<char> done(best.size(), 0);
+  auto fill = [&](size_t i) {
+    ranked[i] = Describe(db, best[i], context.image_dir);
+    done[i] = 1;
+    if (!options.verify.enabled) return;
+    ranked[i].num_inliers =
+        VerifyKeyframe(db, best[i].index, grouped.set, best[i].matches, options.verify).num_inliers;
+    ranked[i].score = ranked[i].num_inliers;
+  };
+  const auto fill_range = [&](size_t first, size_t last) {
+    if (first >= last) return;
+    if (context.pool == nullptr || last - first <= 1) {
+      for (size_t i = first; i < last; ++i) fill(i);
+    } else {
+      context.pool->ParallelFor(last - first, [&](size_t i) { fill(first + i); });
+    }
+  };
+  // Only what can reach the top k is verified: once k candidates are
+  // verified, one with fewer matches than the k-th best inlier count so far
+  // cannot rank among them (inliers are a subset of its matches), nor can
+  // any after it (fewer matches still). In two rounds, so that which ones
+  // are verified does not depend on the threads: the best k by matches,
+  // then those of the rest that could still rank.
+  const size_t top_k = static_cast<size_t>(options.top_k);
+  if (!options.verify.enabled || ranked.size() <= top_k) {
+    fill_range(0, ranked.size());
+  } else {
+    fill_range(0, top_k);
+    int kth = ranked[0].num_inliers;
+    for (size_t i = 1; i < top_k; ++i) kth = std::min(kth, ranked[i].num_inliers);
+    size_t last = top_k;
+    while (last < ranked.size() && best[last].num_matches >= kth) ++last;
+    fill_range(top_k, last);
+  }
+  for (size_t i = 0; i < ranked.size(); ++i) {
+    if (done[i]) out.ranked.push_back(std::move(ranked[i]));
+  }
+  if (options.verify.enabled) out.verified = out.ranked.size();
+  out.verify_ms = options.verify.enabled ? stage.ElapsedMs() : 0.0;
+  return out;
+}
+
+// Under a deadline: candidates in prior order (threads take the next from a
+// counter), each matched and, while it is among the best num_candidates by
+// matches so far, verified at once; a later candidate with more matches
+// displaces it (its verification is dropped). A candidate is started only
+// when the costliest of this query's candidates so far would still end
+// before the deadline, so a query is late only by what one candidate costs
+// beyond that; the first candidate is always examined and verified.
+Examination ExamineTimed(const Database& db, const GroupedFeatures& grouped,
+                         const std::vector<Candidate>& candidates, const QueryOptions& options,
+                         const QueryContext& context, const Deadline& deadline) {
+  Examination out;
+  const size_t keep = KeptAfterMatching(options);
+  const bool verify = options.verify.enabled;
+  const size_t n = candidates.size();
+  struct Kept {
+    Examined e;
+    RankedKeyframe r;
+  };
+  std::vector<Kept> best;  // at most keep, guarded by `mutex`
+  std::mutex mutex;
+  std::atomic<size_t> next{0}, examined{0};
+  std::atomic<bool> stopped{false};
+  WorstCost cost;
+  double match_ms = 0.0, verify_ms = 0.0;  // guarded by `mutex`
+  const auto in_best = [&](const Examined& e) {  // under `mutex`
+    if (best.size() < keep) return true;
+    const Examined& worst = best.back().e;
+    return MoreMatches(e.id, e.num_matches, worst.id, worst.num_matches);
+  };
+  const auto insert = [&](Kept k) {  // under `mutex`
+    const auto at = std::find_if(best.begin(), best.end(), [&](const Kept& b) {
+      return MoreMatches(k.e.id, k.e.num_matches, b.e.id, b.e.num_matches);
+    });
+    best.insert(at, std::move(k));
+    if (best.size() > keep) best.pop_back();
+  };
+  auto worker = [&](size_t) {
+    std::vector<cv::DMatch> matches;
+    for (;;) {
+      const size_t i = next.fetch_add(1);
+      if (i >= n) break;
+      if (i > 0 && (stopped || !deadline.Fits(cost.Get()))) {
+        stopped = true;
+        break;
+      }
+      Timer t;
+      const uint32_t index = candidates[i].index;
+      matches.clear();
+      const int good = MatchDescriptors(grouped.block, db.Descriptors(index), options.match,
+                                        verify ? &matches : nullptr);
+      examined.fetch_add(1, std::memory_order_relaxed);
+      const double matched_ms = t.ElapsedMs();
+      double verified_ms = 0.0;
+      if (good >= options.min_matches) {
+        Examined e{index, db.keyframe(index).id, good, verify ? matches : std::vector<cv::DMatch>()};
+        bool candidate;
+        {
+          std::lock_guard<std::mutex> lock(mutex);
+          candidate = in_best(e);
+        }
+        if (candidate) {
+          Kept k{std::move(e), RankedKeyframe()};
+          k.r = Describe(db, k.e, context.image_dir);
+          if (verify) {
+            Timer v;
+            k.r.num_inliers =
+                VerifyKeyframe(db, index, grouped.set, k.e.matches, options.verify).num_inliers;
+            k.r.score = k.r.num_inliers;
+            k.e.matches.clear();  // not needed any more
+            verified_ms = v.ElapsedMs();
+          }
+          std::lock_guard<std::mutex> lock(mutex);
+          if (in_best(k.e)) insert(std::move(k));
+        }
+      }
+      {
+        std::lock_guard<std::mutex> lock(mutex);
+        match_ms += matched_ms;
+        verify_ms += verified_ms;
+      }
+      cost.Add(matched_ms + verified_ms);
+    }
+  };
+  const size_t threads =
+      context.pool == nullptr
+          ? 1
+          : std::max<size_t>(1, std::min(n, static_cast<size_t>(context.pool->size())));
+  if (threads == 1) {
+    worker(0);
+  } else {
+    context.pool->ParallelFor(threads, worker);
+  }
+  for (Kept& k : best) out.ranked.push_back(std::move(k.r));
+  out.examined = examined.load();
+  if (verify) out.verified = out.ranked.size();
+  out.stopped = stopped.load();
+  out.match_ms = match_ms;
+  out.verify_ms = verify ? verify_ms : 0.0;
+  return out;
+}
+
 // retrieve -> match -> verify -> decide over `among` (sorted, unique, in
 // range; nullptr = the whole database) with `retriever`. `clock` started with
 // the query: the deadline is measured from it.
@@ -270,124 +503,31 @@ QueryResult RunStages(const Database& db, const FeatureSet& query, const QueryOp
   result.num_query_features = static_cast<int>(query.size());
   result.num_keyframes = among ? among->size() : db.size();
   result.search = RetrievalMethodName(retriever.method());
-  const double deadline = options.deadline_ms;
-  auto out_of_time = [&] { return deadline > 0.0 && clock.ElapsedMs() >= deadline; };
+  const Deadline deadline(clock, options.deadline_ms);
 
-  // Retrieve.
+  // Retrieve. Under a deadline the retriever may stop early (bag-of-words
+  // scoring of a large database takes milliseconds): the match stage then
+  // takes the candidates found so far, the first always.
   Timer stage;
-  // Under a deadline the retriever may stop early (bag-of-words scoring of a
-  // large database takes milliseconds): the match stage then takes the
-  // candidates found so far, the first always.
   bool retrieve_stopped = false;
   const std::vector<Candidate> candidates =
-      retriever.Retrieve(db, query, among, Deadline(clock, deadline), &retrieve_stopped);
+      retriever.Retrieve(db, query, among, deadline, &retrieve_stopped);
   result.times.retrieve_ms = stage.ElapsedMs();
 
-  // Match: contiguous chunks of the candidates, each keeping its best; the
-  // merged best do not depend on the chunking. Under a deadline the threads
-  // take candidates in prior order instead, until the time is out (the first
-  // candidate is always examined).
-  stage.Restart();
-  // SURF: the query's rows grouped by Laplacian sign, like the database's.
+  // Match and verify. SURF: the query's rows grouped by Laplacian sign,
+  // like the database's.
   const GroupedFeatures grouped = GroupByLaplacian(query);
-  const DescriptorBlock& block = grouped.block;
-  const size_t keep = KeptAfterMatching(options);
-  const bool need_matches = options.verify.enabled;
-  const size_t n = candidates.size();
-  const size_t chunks =
-      context.pool == nullptr
-          ? 1
-          : std::max<size_t>(1, std::min(n, static_cast<size_t>(context.pool->size())));
-  std::vector<std::vector<Examined>> partial(chunks);
-  std::atomic<size_t> next{0};
-  std::atomic<size_t> examined{0};
-  std::atomic<bool> stopped{false};
-  auto match_chunk = [&](size_t c) {
-    std::vector<Examined>& out = partial[c];
-    std::vector<cv::DMatch> matches;
-    const size_t first = n * c / chunks, last = n * (c + 1) / chunks;
-    for (size_t k = first;; ++k) {
-      size_t i = k;
-      if (deadline > 0.0) {
-        i = next.fetch_add(1);
-        if (i >= n) break;
-        if (i > 0 && out_of_time()) {
-          stopped = true;
-          break;
-        }
-      } else if (k >= last) {
-        break;
-      }
-      const uint32_t index = candidates[i].index;
-      matches.clear();
-      const int good = MatchDescriptors(block, db.Descriptors(index), options.match,
-                                        need_matches ? &matches : nullptr);
-      examined.fetch_add(1, std::memory_order_relaxed);
-      if (good < options.min_matches) continue;
-      out.push_back(
-          {index, db.keyframe(index).id, good, need_matches ? matches : std::vector<cv::DMatch>()});
-      if (out.size() > 2 * keep + 64) KeepBest(&out, keep);  // bounded memory
-    }
-    KeepBest(&out, keep);
-  };
-  if (chunks == 1) {
-    match_chunk(0);
-  } else {
-    context.pool->ParallelFor(chunks, match_chunk);
-  }
-  result.num_examined = examined.load();
-  std::vector<Examined> best;
-  for (auto& p : partial) {
-    for (auto& e : p) best.push_back(std::move(e));
-  }
-  KeepBest(&best, keep);
-  result.times.match_ms = stage.ElapsedMs();
-
-  // Verify (under a deadline, the best by matches first; the first always).
-  stage.Restart();
-  std::vector<RankedKeyframe> ranked(best.size());
-  std::vector<char> done(best.size(), 1);
-  auto fill = [&](size_t i) {
-    const Examined& e = best[i];
-    const Keyframe& k = db.keyframe(e.index);
-    RankedKeyframe& r = ranked[i];
-    r.keyframe_id = k.id;
-    r.num_matches = e.num_matches;
-    r.score = e.num_matches;
-    r.pose = k.pose;
-    r.timestamp = k.timestamp;
-    r.source = k.source;
-    if (!k.image_file.empty()) {
-      r.stored_image = context.image_dir.empty()
-                           ? k.image_file
-                           : (fs::path(context.image_dir) / k.image_file).string();
-    }
-    if (!options.verify.enabled) return;
-    if (i > 0 && out_of_time()) {
-      done[i] = 0;
-      stopped = true;
-      return;
-    }
-    r.num_inliers = VerifyKeyframe(db, e.index, grouped.set, e.matches, options.verify).num_inliers;
-    r.score = r.num_inliers;
-  };
-  if (context.pool == nullptr || ranked.size() <= 1) {
-    for (size_t i = 0; i < ranked.size(); ++i) fill(i);
-  } else {
-    context.pool->ParallelFor(ranked.size(), fill);
-  }
-  if (std::find(done.begin(), done.end(), 0) != done.end()) {
-    std::vector<RankedKeyframe> kept;
-    for (size_t i = 0; i < ranked.size(); ++i) {
-      if (done[i]) kept.push_back(std::move(ranked[i]));
-    }
-    ranked = std::move(kept);
-  }
-  if (options.verify.enabled) result.num_verified = ranked.size();
-  result.times.verify_ms = options.verify.enabled ? stage.ElapsedMs() : 0.0;
-  result.deadline_reached = stopped.load() || retrieve_stopped;
+  Examination e = deadline.enabled()
+                      ? ExamineTimed(db, grouped, candidates, options, context, deadline)
+                      : ExamineAll(db, grouped, candidates, options, context);
+  result.num_examined = e.examined;
+  result.num_verified = e.verified;
+  result.times.match_ms = e.match_ms;
+  result.times.verify_ms = e.verify_ms;
+  result.deadline_reached = e.stopped || retrieve_stopped;
 
   // Rank and decide.
+  std::vector<RankedKeyframe>& ranked = e.ranked;
   std::sort(ranked.begin(), ranked.end(), RanksFirst);
   if (ranked.size() > static_cast<size_t>(options.top_k)) ranked.resize(options.top_k);
   result.ranked = std::move(ranked);

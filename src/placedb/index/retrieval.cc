@@ -95,12 +95,14 @@ class BowRetriever : public Retriever {
       Candidate c;
       int guided;
     };
-    // Counted until the deadline passes (the first always); the uncounted
-    // keep their bag-of-words order after the counted ones.
+    // Counted while the mean count so far still fits before the deadline
+    // (the first always); the uncounted keep their bag-of-words order after
+    // the counted ones.
     std::vector<Ranked> ranked;
     ranked.reserve(out.size());
+    Timer counting;
     for (const Candidate& c : out) {
-      if (!ranked.empty() && deadline.passed()) {
+      if (!ranked.empty() && !deadline.Fits(counting.ElapsedMs() / ranked.size())) {
         if (stopped != nullptr) *stopped = true;
         break;
       }

@@ -197,10 +197,14 @@ TEST_F(SearchTest, BowFindsWhatExhaustiveSearchFinds) {
   EXPECT_GE(r_bow, r_exhaustive - 0.02) << "exhaustive " << r_exhaustive;
   const QueryResult r = db.Query(Features(42), bow);
   EXPECT_EQ(r.search, "bow");
-  EXPECT_EQ(r.num_examined, 10u);
-  EXPECT_DOUBLE_EQ(r.coverage, 10.0 / 40.0);
-  // Enough candidates: bow examines everything and answers as exhaustive.
+  // 10 bag-of-words candidates, the best 5 by guided matches matched in full.
+  ASSERT_EQ(bow.retrieval.guided_candidates, 5);
+  EXPECT_EQ(r.num_examined, 5u);
+  EXPECT_DOUBLE_EQ(r.coverage, 5.0 / 40.0);
+  // Enough candidates, all matched in full: bow examines everything and
+  // answers as exhaustive.
   bow.retrieval.bow_candidates = 40;
+  bow.retrieval.guided_candidates = 0;
   const QueryResult all = db.Query(Features(42), bow);
   EXPECT_EQ(all.ranked, db.Query(Features(42), exhaustive).ranked);
 }

@@ -111,6 +111,21 @@ uint64_t Reseal(std::string* bytes) {
 
 void CheckSealed(const Image& image, const char (&magic)[8], uint32_t version, const char* kind,
                  const std::string& shown) {
+  CheckSealedHeader(image, magic, version, kind, shown);
+  CheckPayloadChecksum(image, shown);
+}
+
+void CheckPayloadChecksum(const Image& image, const std::string& shown) {
+  CommonHeader common;
+  std::memcpy(&common, image.data, sizeof(common));
+  if (Checksum64(image.data + kHeaderBytes, static_cast<size_t>(image.size - kHeaderBytes)) !=
+      common.payload_checksum) {
+    PLACEDB_THROW_RUNTIME(shown, ": payload checksum mismatch (the file is corrupted)");
+  }
+}
+
+void CheckSealedHeader(const Image& image, const char (&magic)[8], uint32_t version,
+                       const char* kind, const std::string& shown) {
   const char* b = image.data;
   const uint64_t size = image.size;
   auto fail = [&](const auto&... what) { PLACEDB_THROW_RUNTIME(shown, ": ", what...); };
@@ -136,10 +151,6 @@ void CheckSealed(const Image& image, const char (&magic)[8], uint32_t version, c
   std::memcpy(&header_checksum, b + kHeaderChecksumOffset, sizeof(header_checksum));
   if (Checksum64(b, kHeaderChecksumOffset) != header_checksum)
     fail("header checksum mismatch (the file is corrupted)");
-  if (Checksum64(b + kHeaderBytes, static_cast<size_t>(size - kHeaderBytes)) !=
-      common.payload_checksum) {
-    fail("payload checksum mismatch (the file is corrupted)");
-  }
 }
 
 void WriteImage(const Image& image, const std::string& path) {
@@ -687,6 +698,45 @@ Vocabulary Vocabulary::Open(const std::string& path) {
 Vocabulary Vocabulary::FromMapped(std::shared_ptr<const MappedFile> file,
                                   const std::string& shown_name) {
   return FromImage(flat_file::MapImage(std::move(file)), shown_name);
+}
+
+void Vocabulary::Words(const uint8_t* rows, int count, int node_level, uint32_t* words,
+                       uint32_t* nodes) const {
+  if (count <= 0) return;
+  thread_local std::vector<uint32_t> current, passed;
+  current.assign(static_cast<size_t>(count), 0);
+  passed.assign(static_cast<size_t>(count), 0);
+  const size_t row_bytes = static_cast<size_t>(row_bytes_);
+  // Touches the children of `n` (their node records and centroid rows).
+  const auto prefetch = [&](const Node& n) {
+    if (n.num_children == 0) return;
+    const char* c = reinterpret_cast<const char*>(Centroid(n.first_child));
+    const size_t bytes = row_bytes * n.num_children;
+    for (size_t o = 0; o < bytes; o += 64) __builtin_prefetch(c + o);
+    __builtin_prefetch(nodes_ + n.first_child);
+  };
+  // Rows this far ahead have their next children prefetched.
+  constexpr int kAhead = 8;
+  for (int level = 0;; ++level) {
+    bool descended = false;
+    for (int r = 0; r < count && r < kAhead; ++r) prefetch(nodes_[current[r]]);
+    for (int r = 0; r < count; ++r) {
+      if (r + kAhead < count) prefetch(nodes_[current[r + kAhead]]);
+      const Node& n = nodes_[current[r]];
+      if (level <= node_level) passed[r] = current[r];
+      if (n.num_children == 0) continue;
+      current[r] = n.first_child +
+                   static_cast<uint32_t>(Nearest(type_, row_bytes_, rows + r * row_bytes,
+                                                 Centroid(n.first_child),
+                                                 static_cast<int>(n.num_children)));
+      descended = true;
+    }
+    if (!descended) break;
+  }
+  for (int r = 0; r < count; ++r) {
+    words[r] = nodes_[current[r]].word;
+    if (nodes != nullptr && node_level >= 0) nodes[r] = passed[r];
+  }
 }
 
 uint32_t Vocabulary::Word(const uint8_t* row, int node_level, uint32_t* node) const {

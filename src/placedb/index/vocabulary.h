@@ -172,6 +172,13 @@ std::string Patched(std::string bytes, uint64_t offset, const T& value) {
 // std::runtime_error "<shown>: <what is wrong>".
 void CheckSealed(const Image& image, const char (&magic)[8], uint32_t version, const char* kind,
                  const std::string& shown);
+// CheckSealed in two parts, for a caller that checks the payload's
+// checksum while it reads the payload on other threads (the reads must not
+// trust it until both have passed): all but the payload's checksum, then
+// that checksum ("payload checksum mismatch (the file is corrupted)").
+void CheckSealedHeader(const Image& image, const char (&magic)[8], uint32_t version,
+                       const char* kind, const std::string& shown);
+void CheckPayloadChecksum(const Image& image, const std::string& shown);
 
 // Writes the image to `path` crash-safely (AtomicFileWriter: temporary file,
 // fsync, rename).
@@ -286,6 +293,12 @@ class Vocabulary {
   // counted from the root = 0), or the leaf when the leaf is above that
   // level: the direct index's node.
   uint32_t Word(const uint8_t* row, int node_level = -1, uint32_t* node = nullptr) const;
+  // Word() of `count` rows stored back to back: words[i] (and, with `nodes`,
+  // nodes[i]) for row i, the same answers. The rows descend together, level
+  // by level, each prefetching the children it compares with next, so that
+  // the tree's cache misses overlap instead of following one another.
+  void Words(const uint8_t* rows, int count, int node_level, uint32_t* words,
+             uint32_t* nodes) const;
   // The IDF weight of `word` (< num_words()).
   float Idf(uint32_t word) const { return idf_[word]; }
 

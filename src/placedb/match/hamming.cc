@@ -18,6 +18,7 @@
 
 #include <cstdlib>
 #include <cstring>
+#include <vector>
 
 namespace placedb {
 namespace {
@@ -66,7 +67,14 @@ __attribute__((target("popcnt"))) TwoNearest TwoNearestPopcnt(const uint8_t* que
       const uint32_t dist =
           static_cast<uint32_t>(_mm_popcnt_u64(q[0] ^ d[0]) + _mm_popcnt_u64(q[1] ^ d[1]) +
                                 _mm_popcnt_u64(q[2] ^ d[2]) + _mm_popcnt_u64(q[3] ^ d[3]));
-      out.Update(dist, j);
+      // TwoNearest::Update without branches (conditional moves): which row
+      // is nearer is a coin flip for the branch predictor, and guided
+      // matching calls this for a few rows at a time.
+      const bool nearer = dist < out.best;
+      const uint32_t second = dist < out.second ? dist : out.second;
+      out.second = nearer ? out.best : second;
+      out.best_index = nearer ? j : out.best_index;
+      out.best = nearer ? dist : out.best;
     }
     return out;
   }
@@ -156,6 +164,9 @@ alignas(64) constexpr uint16_t kRowOfLane[32] = {0,  2,  16, 18, 4,  6,  20, 22,
 
 // Rows per call of TwoNearestAvx512Chunk: row indices fit in 16 bits.
 constexpr int kAvx512ChunkRows = 65536;
+// Up to this many rows (at most 16) the AVX-512 kernels keep the rows in
+// registers (FewNearest) instead of 32-row steps.
+constexpr int kAvx512MinRows = 16;
 
 #define PLACEDB_SHUFPS(a, b, imm) \
   _mm512_castps_si512(_mm512_shuffle_ps(_mm512_castsi512_ps(a), _mm512_castsi512_ps(b), (imm)))
@@ -227,34 +238,9 @@ PLACEDB_INLINE_AVX512 void Track(Lanes& s, __m512i d, int base) {
   s.best_base = _mm512_mask_mov_epi16(s.best_base, lt, _mm512_set1_epi16(static_cast<short>(base)));
 }
 
-// At most kAvx512ChunkRows rows (count >= 1).
-PLACEDB_TARGET_AVX512 TwoNearest TwoNearestAvx512Chunk(__m512i q2, const uint8_t* db, int count) {
-  const __m512i none = _mm512_set1_epi16(-1);  // 0xffff: no candidate
-  const __m512i row_of_lane = _mm512_load_si512(kRowOfLane);
-  Lanes lanes{none, none, none};
-
-  if (count < 32) {
-    // Masked loads; the lanes of missing rows are set to 0xffff (never
-    // < best, and max(best, d) = d leaves second as it is).
-    const __m512i d = Distances32<true>(q2, db, count);
-    const __mmask32 valid =
-        _mm512_cmplt_epu16_mask(row_of_lane, _mm512_set1_epi16(static_cast<short>(count)));
-    Track(lanes, _mm512_mask_mov_epi16(none, valid, d), 0);
-  } else {
-    int j = 0;
-    for (; j + 32 <= count; j += 32) {
-      Track(lanes, Distances32<false>(q2, db + static_cast<size_t>(j) * 32, 0), j);
-    }
-    if (j < count) {
-      // 1..31 rows left: the last 32 rows again, keeping only the lanes of
-      // rows >= j (those rows come after every row the lane saw).
-      const int base = count - 32;
-      const __m512i d = Distances32<false>(q2, db + static_cast<size_t>(base) * 32, 0);
-      const __mmask32 fresh =
-          _mm512_cmpge_epu16_mask(row_of_lane, _mm512_set1_epi16(static_cast<short>(j - base)));
-      Track(lanes, _mm512_mask_mov_epi16(none, fresh, d), base);
-    }
-  }
+// The two nearest over all lanes: the best, the lowest row among the lanes
+// that have it, and the second smallest of every lane's best and second.
+PLACEDB_INLINE_AVX512 TwoNearest ReduceLanes(const Lanes& lanes, __m512i row_of_lane) {
   // Across lanes, folding 512 -> 256 -> 128 bits, then within 128 bits.
   // The best, and the lowest row among the lanes that have it: the minimum
   // of (best << 16 | row) over the lanes, in 32 bits.
@@ -288,15 +274,115 @@ PLACEDB_TARGET_AVX512 TwoNearest TwoNearestAvx512Chunk(__m512i q2, const uint8_t
   return out;
 }
 
-PLACEDB_TARGET_AVX512 TwoNearest TwoNearestAvx512(const uint8_t* query, const uint8_t* db,
-                                                  int count, int bytes) {
-  if (bytes != 32) return TwoNearestPopcnt(query, db, count, bytes);
+// At most kAvx512ChunkRows rows (count >= 1).
+PLACEDB_TARGET_AVX512 TwoNearest TwoNearestAvx512Chunk(__m512i q2, const uint8_t* db, int count) {
+  const __m512i none = _mm512_set1_epi16(-1);  // 0xffff: no candidate
+  const __m512i row_of_lane = _mm512_load_si512(kRowOfLane);
+  Lanes lanes{none, none, none};
+
+  if (count < 32) {
+    // Masked loads; the lanes of missing rows are set to 0xffff (never
+    // < best, and max(best, d) = d leaves second as it is).
+    const __m512i d = Distances32<true>(q2, db, count);
+    const __mmask32 valid =
+        _mm512_cmplt_epu16_mask(row_of_lane, _mm512_set1_epi16(static_cast<short>(count)));
+    Track(lanes, _mm512_mask_mov_epi16(none, valid, d), 0);
+  } else {
+    int j = 0;
+    for (; j + 32 <= count; j += 32) {
+      Track(lanes, Distances32<false>(q2, db + static_cast<size_t>(j) * 32, 0), j);
+    }
+    if (j < count) {
+      // 1..31 rows left: the last 32 rows again, keeping only the lanes of
+      // rows >= j (those rows come after every row the lane saw).
+      const int base = count - 32;
+      const __m512i d = Distances32<false>(q2, db + static_cast<size_t>(base) * 32, 0);
+      const __mmask32 fresh =
+          _mm512_cmpge_epu16_mask(row_of_lane, _mm512_set1_epi16(static_cast<short>(j - base)));
+      Track(lanes, _mm512_mask_mov_epi16(none, fresh, d), base);
+    }
+  }
+  return ReduceLanes(lanes, row_of_lane);
+}
+
+// Up to 2 * kRegs rows (kRegs = 4 or 8), at most kAvx512MinRows, held in
+// kRegs registers of two rows each (masked loads read only the rows that
+// exist) and reused across queries: the four 64-bit popcounts of a row are
+// summed within its 256-bit half, the row sums packed into 32-bit lanes,
+// and the two nearest found by reductions over the lanes. No branch
+// depends on the data, unlike a scan of a few rows, whose early loop exits
+// the branch predictor misses (guided matching's rows of one vocabulary
+// node, a node's children).
+template <int kRegs>
+struct FewRows {
+  __m512i rows[kRegs];
+  __mmask16 valid;  // 32-bit lanes (rows) that exist
+  int count;
+};
+
+template <int kRegs>
+PLACEDB_INLINE_AVX512 FewRows<kRegs> LoadFewRows(const uint8_t* db, int count) {
+  FewRows<kRegs> f;
+  for (int k = 0; k < kRegs; ++k) {
+    int words = 4 * count - 8 * k;
+    words = words < 0 ? 0 : (words > 8 ? 8 : words);
+    f.rows[k] = _mm512_maskz_loadu_epi64(static_cast<__mmask8>((1u << words) - 1), db + 64 * k);
+  }
+  f.valid = static_cast<__mmask16>((1u << count) - 1);
+  f.count = count;
+  return f;
+}
+
+template <int kRegs>
+PLACEDB_INLINE_AVX512 TwoNearest FewNearest(const FewRows<kRegs>& f, const uint8_t* query) {
+  const __m512i q2 =
+      _mm512_broadcast_i64x4(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(query)));
+  // t[k]: row 2k's distance in every 64-bit lane of the low half, row
+  // 2k + 1's in the high half.
+  __m512i t[kRegs];
+  for (int k = 0; k < kRegs; ++k) {
+    const __m512i c = _mm512_popcnt_epi64(_mm512_xor_si512(q2, f.rows[k]));
+    const __m512i pairs = _mm512_add_epi64(c, _mm512_shuffle_epi32(c, _MM_PERM_BADC));
+    t[k] = _mm512_add_epi64(pairs, _mm512_shuffle_i64x2(pairs, pairs, _MM_SHUFFLE(2, 3, 0, 1)));
+  }
+  // Row r's distance to 32-bit lane r: pairs of registers, then pairs of
+  // those (dword 0 and 8 of each t hold its two rows).
+  const __m512i first = _mm512_setr_epi32(0, 8, 16, 24, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0);
+  const __m512i second = _mm512_setr_epi32(0, 1, 2, 3, 16, 17, 18, 19, 0, 0, 0, 0, 0, 0, 0, 0);
+  const __m512i third = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 16, 17, 18, 19, 20, 21, 22, 23);
+  const __m512i p0 = _mm512_permutex2var_epi32(t[0], first, t[1]);
+  const __m512i p1 = _mm512_permutex2var_epi32(t[2], first, t[3]);
+  __m512i d = _mm512_permutex2var_epi32(p0, second, p1);  // rows 0-7
+  if constexpr (kRegs == 8) {
+    const __m512i p2 = _mm512_permutex2var_epi32(t[4], first, t[5]);
+    const __m512i p3 = _mm512_permutex2var_epi32(t[6], first, t[7]);
+    d = _mm512_permutex2var_epi32(d, third, _mm512_permutex2var_epi32(p2, second, p3));
+  }
+  const __m512i none = _mm512_set1_epi32(-1);
+  d = _mm512_mask_mov_epi32(none, f.valid, d);
   TwoNearest out;
-  if (count <= 0) return out;
+  const uint32_t best = _mm512_reduce_min_epu32(d);
+  const uint32_t at = static_cast<uint32_t>(
+      __builtin_ctz(static_cast<unsigned>(_mm512_cmpeq_epu32_mask(d, _mm512_set1_epi32(
+                                                                         static_cast<int>(best))))));
+  // The second: the smallest of the other lanes (a tie at the minimum
+  // gives best again).
+  const uint32_t next =
+      _mm512_reduce_min_epu32(_mm512_mask_mov_epi32(d, static_cast<__mmask16>(1u << at), none));
+  out.best = best;
+  out.best_index = static_cast<int>(at);
+  out.second = next;  // UINT32_MAX when there is no other row
+  return out;
+}
+
+// TwoNearestAvx512 without the final vzeroupper (for loops over queries).
+PLACEDB_TARGET_AVX512 TwoNearest TwoNearestAvx512Dirty(const uint8_t* query, const uint8_t* db,
+                                                       int count) {
   const __m512i q2 =
       _mm512_broadcast_i64x4(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(query)));
   if (count <= kAvx512ChunkRows) return TwoNearestAvx512Chunk(q2, db, count);
   // Chunks in index order: a later chunk wins only when strictly better.
+  TwoNearest out;
   for (int start = 0; start < count; start += kAvx512ChunkRows) {
     const int n = count - start < kAvx512ChunkRows ? count - start : kAvx512ChunkRows;
     const TwoNearest c = TwoNearestAvx512Chunk(q2, db + static_cast<size_t>(start) * 32, n);
@@ -309,6 +395,123 @@ PLACEDB_TARGET_AVX512 TwoNearest TwoNearestAvx512(const uint8_t* query, const ui
     }
   }
   return out;
+}
+
+PLACEDB_TARGET_AVX512 TwoNearest TwoNearestAvx512(const uint8_t* query, const uint8_t* db,
+                                                  int count, int bytes) {
+  // A few rows (guided matching's rows of one vocabulary node, a
+  // vocabulary node's children) stay in registers: a masked 32-row step and
+  // its reduction took 40-50 ns for any count below 32.
+  if (bytes != 32) return TwoNearestPopcnt(query, db, count, bytes);
+  TwoNearest out;
+  if (count <= 0) return out;
+  if (count <= 8) {
+    out = FewNearest<4>(LoadFewRows<4>(db, count), query);
+  } else if (count <= kAvx512MinRows) {
+    out = FewNearest<8>(LoadFewRows<8>(db, count), query);
+  } else {
+    out = TwoNearestAvx512Dirty(query, db, count);
+  }
+  // GCC 12 emits no vzeroupper on these kernels' return: the caller's SSE
+  // code (the ratio test's double arithmetic) then paid a merge of the
+  // dirty upper halves on every instruction. Measured: the whole-keyframe
+  // match ran 1.5x slower than its distances. Every SIMD kernel leaves the
+  // upper state clean (hamming_test checks it).
+  _mm256_zeroupper();
+  return out;
+}
+
+PLACEDB_TARGET_AVX512 void TwoNearestAvx512Batch(const uint8_t* queries, int num_queries,
+                                                 const uint8_t* db, int count, TwoNearest* out) {
+  if (count <= 0) {
+    for (int i = 0; i < num_queries; ++i) out[i] = TwoNearest();
+  } else if (count <= 8) {
+    const FewRows<4> rows = LoadFewRows<4>(db, count);
+    for (int i = 0; i < num_queries; ++i)
+      out[i] = FewNearest<4>(rows, queries + static_cast<size_t>(i) * 32);
+  } else if (count <= kAvx512MinRows) {
+    const FewRows<8> rows = LoadFewRows<8>(db, count);
+    for (int i = 0; i < num_queries; ++i)
+      out[i] = FewNearest<8>(rows, queries + static_cast<size_t>(i) * 32);
+  } else {
+    for (int i = 0; i < num_queries; ++i)
+      out[i] = TwoNearestAvx512Dirty(queries + static_cast<size_t>(i) * 32, db, count);
+  }
+  _mm256_zeroupper();
+}
+
+// Per 16-bit lane of a step's 32 database rows (kRowOfLane order): the two
+// nearest query rows, and the query row of the best, kept in memory as
+// three rows of 32 u16 (best, second, best query). Query rows arrive in
+// increasing order, so strict < keeps the lower one on ties.
+PLACEDB_INLINE_AVX512 void TrackColumn(uint16_t* c, __m512i d, int query) {
+  const __m512i best = _mm512_loadu_si512(c);
+  const __m512i second = _mm512_loadu_si512(c + 32);
+  const __m512i best_query = _mm512_loadu_si512(c + 64);
+  const __mmask32 lt = _mm512_cmplt_epu16_mask(d, best);
+  _mm512_storeu_si512(c + 32, _mm512_min_epu16(second, _mm512_max_epu16(best, d)));
+  _mm512_storeu_si512(c, _mm512_min_epu16(best, d));
+  _mm512_storeu_si512(
+      c + 64, _mm512_mask_mov_epi16(best_query, lt, _mm512_set1_epi16(static_cast<short>(query))));
+}
+
+// Each query row's two nearest database rows (forward) and each database
+// row's two nearest query rows (backward) from one pass over the distances.
+// count >= 1, count <= kAvx512ChunkRows, 1 <= num_queries <= 65535.
+PLACEDB_TARGET_AVX512 void TwoNearestAvx512Both(const uint8_t* queries, int num_queries,
+                                                const uint8_t* db, int count, TwoNearest* forward,
+                                                TwoNearest* backward) {
+  const __m512i none = _mm512_set1_epi16(-1);
+  const __m512i row_of_lane = _mm512_load_si512(kRowOfLane);
+  // Steps of 32 rows; a last partial step (count % 32 rows) is the last 32
+  // rows again (or, below 32 rows, a masked step), with the rows other steps
+  // cover masked out.
+  const int full = count / 32;
+  const bool partial = count % 32 != 0;
+  const int steps = full + (partial ? 1 : 0);
+  const int partial_base = count < 32 ? 0 : count - 32;
+  const __mmask32 partial_lanes =
+      count < 32
+          ? _mm512_cmplt_epu16_mask(row_of_lane, _mm512_set1_epi16(static_cast<short>(count)))
+          : _mm512_cmpge_epu16_mask(row_of_lane,
+                                    _mm512_set1_epi16(static_cast<short>(full * 32 - partial_base)));
+  thread_local std::vector<uint16_t> columns;
+  columns.assign(static_cast<size_t>(steps) * 96, 0xffff);
+  for (int i = 0; i < num_queries; ++i) {
+    const __m512i q2 = _mm512_broadcast_i64x4(
+        _mm256_loadu_si256(reinterpret_cast<const __m256i*>(queries + static_cast<size_t>(i) * 32)));
+    Lanes lanes{none, none, none};
+    for (int k = 0; k < full; ++k) {
+      const __m512i d = Distances32<false>(q2, db + static_cast<size_t>(k) * 1024, 0);
+      Track(lanes, d, k * 32);
+      TrackColumn(columns.data() + static_cast<size_t>(k) * 96, d, i);
+    }
+    if (partial) {
+      const __m512i raw = count < 32
+                              ? Distances32<true>(q2, db, count)
+                              : Distances32<false>(q2, db + static_cast<size_t>(partial_base) * 32, 0);
+      const __m512i d = _mm512_mask_mov_epi16(none, partial_lanes, raw);
+      Track(lanes, d, partial_base);
+      TrackColumn(columns.data() + static_cast<size_t>(full) * 96, d, i);
+    }
+    forward[i] = ReduceLanes(lanes, row_of_lane);
+  }
+  for (int k = 0; k < steps; ++k) {
+    const uint16_t* best = columns.data() + static_cast<size_t>(k) * 96;
+    const uint16_t* second = best + 32;
+    const uint16_t* query = best + 64;
+    const bool last = partial && k == full;
+    const int base = last ? partial_base : k * 32;
+    const uint32_t lanes = last ? partial_lanes : 0xffffffffu;
+    for (int lane = 0; lane < 32; ++lane) {
+      if (!((lanes >> lane) & 1u)) continue;
+      TwoNearest& b = backward[base + kRowOfLane[lane]];
+      b.best = best[lane];  // every column saw every query row
+      b.second = second[lane] == 0xffff ? UINT32_MAX : second[lane];
+      b.best_index = query[lane];
+    }
+  }
+  _mm256_zeroupper();
 }
 #undef PLACEDB_INLINE_AVX512
 #undef PLACEDB_TARGET_AVX512
@@ -394,6 +597,58 @@ TwoNearest TwoNearestHammingReference(const uint8_t* query, const uint8_t* db, i
 
 TwoNearest TwoNearestHamming(const uint8_t* query, const uint8_t* db, int count, int bytes) {
   return Run(ActiveHammingKernel(), query, db, count, bytes);
+}
+
+void TwoNearestHammingBatchWith(HammingKernel kernel, const uint8_t* queries, int num_queries,
+                                const uint8_t* db, int count, int bytes, TwoNearest* out) {
+  if (!HammingKernelAvailable(kernel)) kernel = Kernel::kReference;
+  const size_t stride = static_cast<size_t>(bytes);
+#if PLACEDB_X86
+  if (kernel == Kernel::kAvx512 && bytes == 32) {
+    TwoNearestAvx512Batch(queries, num_queries, db, count, out);
+    return;
+  }
+  if (kernel == Kernel::kAvx512 || kernel == Kernel::kPopcnt) {
+    for (int i = 0; i < num_queries; ++i)
+      out[i] = TwoNearestPopcnt(queries + i * stride, db, count, bytes);
+    return;
+  }
+#endif
+  for (int i = 0; i < num_queries; ++i) out[i] = Run(kernel, queries + i * stride, db, count, bytes);
+}
+
+void TwoNearestHammingBatch(const uint8_t* queries, int num_queries, const uint8_t* db, int count,
+                            int bytes, TwoNearest* out) {
+  TwoNearestHammingBatchWith(ActiveHammingKernel(), queries, num_queries, db, count, bytes, out);
+}
+
+void TwoNearestHammingBothWith(HammingKernel kernel, const uint8_t* queries, int num_queries,
+                               const uint8_t* db, int count, int bytes, TwoNearest* forward,
+                               TwoNearest* backward) {
+  if (!HammingKernelAvailable(kernel)) kernel = Kernel::kReference;
+#if PLACEDB_X86
+  if (kernel == Kernel::kAvx512 && bytes == 32 && num_queries >= 1 && num_queries <= 65535 &&
+      count >= 1 && count <= kAvx512ChunkRows) {
+    TwoNearestAvx512Both(queries, num_queries, db, count, forward, backward);
+    return;
+  }
+#endif
+  TwoNearestHammingBatchWith(kernel, queries, num_queries, db, count, bytes, forward);
+  TwoNearestHammingBatchWith(kernel, db, count, queries, num_queries, bytes, backward);
+}
+
+void TwoNearestHammingBoth(const uint8_t* queries, int num_queries, const uint8_t* db, int count,
+                           int bytes, TwoNearest* forward, TwoNearest* backward) {
+  TwoNearestHammingBothWith(ActiveHammingKernel(), queries, num_queries, db, count, bytes, forward,
+                            backward);
+}
+
+bool HammingBothIsOnePass() {
+#if PLACEDB_X86
+  return ActiveHammingKernel() == Kernel::kAvx512;
+#else
+  return false;
+#endif
 }
 
 bool HammingKernelAvailable(HammingKernel kernel) {

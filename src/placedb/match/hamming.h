@@ -29,6 +29,24 @@ TwoNearest TwoNearestHammingReference(const uint8_t* query, const uint8_t* db, i
                                       int bytes);
 TwoNearest TwoNearestHamming(const uint8_t* query, const uint8_t* db, int count, int bytes);
 
+// TwoNearestHamming of each of `num_queries` query rows stored back to back
+// (`bytes` each) at `queries`, against the same `count` rows at `db`, into
+// out[0, num_queries): the same answers, with the kernel chosen once for
+// the batch (guided matching's rows of one vocabulary node; a query against
+// one keyframe).
+void TwoNearestHammingBatch(const uint8_t* queries, int num_queries, const uint8_t* db, int count,
+                            int bytes, TwoNearest* out);
+
+// Both directions of a query against one keyframe: forward[i] =
+// TwoNearestHamming(query row i, db, count), backward[j] =
+// TwoNearestHamming(db row j, queries, num_queries), the same answers (ties:
+// the lower index). The AVX-512 kernel computes each distance once for
+// both (rows of 32 bytes, count <= 65536, num_queries < 65536); the others
+// scan twice (HammingBothIsOnePass says which).
+void TwoNearestHammingBoth(const uint8_t* queries, int num_queries, const uint8_t* db, int count,
+                           int bytes, TwoNearest* forward, TwoNearest* backward);
+bool HammingBothIsOnePass();
+
 // The kernels, for tests and benchmarks; TwoNearestHamming uses
 // ActiveHammingKernel(). The numeric values are stable (benchmark arguments).
 //   kReference: byte table, any CPU.
@@ -46,6 +64,11 @@ bool HammingKernelAvailable(HammingKernel kernel);
 // replaced by the reference one (never executes unsupported instructions).
 TwoNearest TwoNearestHammingWith(HammingKernel kernel, const uint8_t* query, const uint8_t* db,
                                  int count, int bytes);
+void TwoNearestHammingBatchWith(HammingKernel kernel, const uint8_t* queries, int num_queries,
+                                const uint8_t* db, int count, int bytes, TwoNearest* out);
+void TwoNearestHammingBothWith(HammingKernel kernel, const uint8_t* queries, int num_queries,
+                               const uint8_t* db, int count, int bytes, TwoNearest* forward,
+                               TwoNearest* backward);
 
 // The fastest kernel this CPU runs, ignoring the environment.
 HammingKernel BestHammingKernel();

@@ -234,6 +234,91 @@ TEST_P(HammingKernelTest, DoesNotReadPastTheLastRow) {
 }
 #endif
 
+// The batch and both-directions forms give, row by row, what the
+// one-query form gives: random rows and rows with many ties, every count
+// class (masked steps below 32 rows, a last partial step, whole steps).
+TEST_P(HammingKernelTest, BatchAndBothEqualOneAtATime) {
+  const HammingKernel kernel = GetParam();
+  const auto same = [](const TwoNearest& a, const TwoNearest& b) {
+    return a.best == b.best && a.second == b.second && a.best_index == b.best_index;
+  };
+  for (const bool ties : {false, true}) {
+    for (const int bytes : {32, 61}) {
+      for (const int num_queries : {1, 2, 7, 33, 120}) {
+        for (const int count : kCounts) {
+          std::vector<uint8_t> db = RandomBytes(static_cast<size_t>(count) * bytes, 3 + count);
+          std::vector<uint8_t> queries =
+              RandomBytes(static_cast<size_t>(num_queries) * bytes, 5 + num_queries);
+          if (ties) {  // rows drawn from three descriptors
+            const auto pool = RandomBytes(static_cast<size_t>(3) * bytes, 9);
+            for (int j = 0; j < count; ++j)
+              std::memcpy(db.data() + j * bytes, pool.data() + (j * 7 % 3) * bytes, bytes);
+            for (int i = 0; i < num_queries; ++i)
+              std::memcpy(queries.data() + i * bytes, pool.data() + (i * 5 % 3) * bytes, bytes);
+          }
+          const std::string what = std::string(ties ? "ties" : "random") + " bytes " +
+                                   std::to_string(bytes) + " queries " +
+                                   std::to_string(num_queries) + " count " +
+                                   std::to_string(count);
+          std::vector<TwoNearest> batch(num_queries), forward(num_queries), backward(count);
+          TwoNearestHammingBatchWith(kernel, queries.data(), num_queries, db.data(), count, bytes,
+                                     batch.data());
+          TwoNearestHammingBothWith(kernel, queries.data(), num_queries, db.data(), count, bytes,
+                                    forward.data(), backward.data());
+          for (int i = 0; i < num_queries; ++i) {
+            const TwoNearest ref =
+                TwoNearestHammingReference(queries.data() + i * bytes, db.data(), count, bytes);
+            EXPECT_TRUE(same(batch[i], ref)) << what << " batch row " << i;
+            EXPECT_TRUE(same(forward[i], ref)) << what << " forward row " << i;
+          }
+          for (int j = 0; j < count; ++j) {
+            const TwoNearest ref =
+                TwoNearestHammingReference(db.data() + j * bytes, queries.data(), num_queries, bytes);
+            EXPECT_TRUE(same(backward[j], ref)) << what << " backward row " << j;
+          }
+        }
+      }
+    }
+  }
+}
+
+#if defined(__x86_64__) && defined(__linux__)
+// XINUSE (XGETBV with ECX = 1): bit 2 says the upper halves of ymm0-15
+// may be non-zero, bit 6 those of zmm0-15. A kernel that returns with them
+// dirty makes the caller's SSE code merge upper halves on every instruction
+// (measured: the whole-keyframe match 1.5x slower); each kernel ends with
+// vzeroupper.
+bool XinuseSupported() {
+  unsigned eax, ebx, ecx, edx;
+  __asm__("cpuid" : "=a"(eax), "=b"(ebx), "=c"(ecx), "=d"(edx) : "a"(1), "c"(0));
+  if (!(ecx & (1u << 27))) return false;  // OSXSAVE
+  __asm__("cpuid" : "=a"(eax), "=b"(ebx), "=c"(ecx), "=d"(edx) : "a"(0xd), "c"(1));
+  return (eax & (1u << 2)) != 0;  // XGETBV with ECX = 1
+}
+__attribute__((noinline)) uint64_t UpperStateInUse() {
+  unsigned lo, hi;
+  __asm__ volatile("xgetbv" : "=a"(lo), "=d"(hi) : "c"(1));
+  return ((static_cast<uint64_t>(hi) << 32) | lo) & ((1u << 2) | (1u << 6));
+}
+
+TEST_P(HammingKernelTest, LeavesTheUpperVectorStateClean) {
+  if (!XinuseSupported()) GTEST_SKIP() << "XGETBV(1) not supported";
+  const auto db = RandomBytes(500 * 32, 21);
+  const auto queries = RandomBytes(40 * 32, 22);
+  std::vector<TwoNearest> a(40), b(500);
+  for (const int count : {5, 20, 32, 100, 500}) {
+    volatile uint32_t sink = TwoNearestHammingWith(GetParam(), queries.data(), db.data(), count, 32).best;
+    (void)sink;
+    EXPECT_EQ(UpperStateInUse(), 0u) << "one query, count " << count;
+    TwoNearestHammingBatchWith(GetParam(), queries.data(), 40, db.data(), count, 32, a.data());
+    EXPECT_EQ(UpperStateInUse(), 0u) << "batch, count " << count;
+    TwoNearestHammingBothWith(GetParam(), queries.data(), 40, db.data(), count, 32, a.data(),
+                              b.data());
+    EXPECT_EQ(UpperStateInUse(), 0u) << "both, count " << count;
+  }
+}
+#endif
+
 INSTANTIATE_TEST_SUITE_P(AllKernels, HammingKernelTest,
                          ::testing::Values(HammingKernel::kReference, HammingKernel::kPopcnt,
                                            HammingKernel::kAvx2, HammingKernel::kAvx512),

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <type_traits>
 
 #include "placedb/match/hamming.h"
 #include "placedb/match/l2_distance.h"
@@ -80,6 +81,22 @@ struct OrbMetric {
                                  const DescriptorBlock& in) const {
     return TwoNearestHamming(from.Row(row), in.data, in.rows, in.row_bytes);
   }
+  // Every row of `from` against `in` (forward), and with `backward` wanted
+  // and a one-pass kernel, every row of `in` against `from`; else backward
+  // is left empty.
+  void NearestAll(const DescriptorBlock& from, const DescriptorBlock& in, bool want_backward,
+                  std::vector<TwoNearestOf<uint32_t>>* forward,
+                  std::vector<TwoNearestOf<uint32_t>>* backward) const {
+    forward->resize(static_cast<size_t>(from.rows));
+    if (want_backward && HammingBothIsOnePass()) {
+      backward->resize(static_cast<size_t>(in.rows));
+      TwoNearestHammingBoth(from.data, from.rows, in.data, in.rows, in.row_bytes, forward->data(),
+                            backward->data());
+      return;
+    }
+    backward->clear();
+    TwoNearestHammingBatch(from.data, from.rows, in.data, in.rows, in.row_bytes, forward->data());
+  }
   // second == UINT32_MAX (one candidate) always passes.
   bool Passes(const TwoNearestOf<uint32_t>& nn) const {
     return nn.best_index >= 0 && nn.best <= limit &&
@@ -125,6 +142,13 @@ struct SurfMetric {
     return TwoNearestL2(q, d, in.rows, dims, filter ? in.laplacian : nullptr,
                         filter ? sign : int8_t{0});
   }
+  void NearestAll(const DescriptorBlock& from, const DescriptorBlock& in, bool /*want_backward*/,
+                  std::vector<TwoNearestOf<float>>* forward,
+                  std::vector<TwoNearestOf<float>>* backward) const {
+    forward->resize(static_cast<size_t>(from.rows));
+    for (int i = 0; i < from.rows; ++i) (*forward)[i] = Nearest(from, i, in);
+    backward->clear();
+  }
   bool Passes(const TwoNearestOf<float>& nn) const {
     return nn.best_index >= 0 && nn.best <= limit &&
            (std::isinf(nn.second) || nn.best < ratio2 * nn.second);
@@ -140,9 +164,15 @@ int Match(const DescriptorBlock& query, const DescriptorBlock& db, const Metric&
     int q, t;
     Distance d;
   };
-  std::vector<Tentative> tentative;
+  thread_local std::vector<Tentative> tentative;
+  tentative.clear();
+  // Forward: each query row's two nearest keyframe rows; with the cross
+  // check, the metric may give each keyframe row's two nearest query rows
+  // from the same pass (else they are computed for the survivors below).
+  thread_local std::vector<TwoNearestOf<Distance>> forward, backward;
+  metric.NearestAll(query, db, options.cross_check, &forward, &backward);
   for (int i = 0; i < query.rows; ++i) {
-    const auto nn = metric.Nearest(query, i, db);
+    const auto& nn = forward[i];
     if (metric.Passes(nn)) tentative.push_back({i, nn.best_index, nn.best});
   }
   if (options.one_to_one || options.cross_check) {
@@ -161,7 +191,9 @@ int Match(const DescriptorBlock& query, const DescriptorBlock& db, const Metric&
     // test there. (A mutual pair is also one-to-one.)
     tentative.erase(std::remove_if(tentative.begin(), tentative.end(),
                                    [&](const Tentative& m) {
-                                     const auto back = metric.Nearest(db, m.t, query);
+                                     const auto back = backward.empty()
+                                                           ? metric.Nearest(db, m.t, query)
+                                                           : backward[m.t];
                                      return back.best_index != m.q || !metric.Passes(back);
                                    }),
                     tentative.end());
@@ -172,30 +204,6 @@ int Match(const DescriptorBlock& query, const DescriptorBlock& db, const Metric&
     for (const Tentative& m : tentative) out->emplace_back(m.q, m.t, metric.Reported(m.d));
   }
   return static_cast<int>(tentative.size());
-}
-
-}  // namespace
-
-namespace {
-
-uint32_t PairDistance(const OrbMetric&, const DescriptorBlock& a, int i, const DescriptorBlock& b,
-                      int j) {
-  return Hamming(a.Row(i), b.Row(j), a.row_bytes);
-}
-float PairDistance(const SurfMetric&, const DescriptorBlock& a, int i, const DescriptorBlock& b,
-                   int j) {
-  return L2Squared(reinterpret_cast<const float*>(a.Row(i)),
-                   reinterpret_cast<const float*>(b.Row(j)),
-                   a.row_bytes / static_cast<int>(sizeof(float)));
-}
-bool SignsAgree(const OrbMetric&, const DescriptorBlock&, int, const DescriptorBlock&, int) {
-  return true;
-}
-bool SignsAgree(const SurfMetric& m, const DescriptorBlock& a, int i, const DescriptorBlock& b,
-                int j) {
-  if (!m.use_signs) return true;
-  const int8_t sa = RowSign(a, i), sb = RowSign(b, j);
-  return sa == 0 || sb == 0 || sa == sb;
 }
 
 }  // namespace
@@ -211,27 +219,78 @@ int GuidedLabels::Find(uint32_t label) const {
 
 namespace {
 
-// Each keyframe row t updates the two nearest of the query rows of its
-// label (distance(q, t)); then the query rows that found a partner are
-// judged.
-template <typename Metric, typename DistanceFn>
+// The keyframe rows gathered by label (a counting sort, stable: row order
+// within a label), so that each query row is compared with its label's rows
+// by one call of the metric's SIMD two-nearest kernel, as MatchDescriptors
+// compares it with all of them. Per thread, reused across calls.
+struct GuidedScratch {
+  std::vector<int32_t> label_of_row;  // keyframe row -> index in the query's distinct labels
+  std::vector<uint32_t> start;        // label l's rows: gathered [start[l], start[l + 1])
+  std::vector<uint32_t> fill;
+  std::vector<uint8_t> rows;  // the gathered descriptors
+  std::vector<int8_t> signs;  // their Laplacian signs (SURF, when the keyframe's are known)
+};
+
+// For each query row: its two nearest among the keyframe rows of its own
+// label (ties: the lower keyframe row), judged by the metric's rules.
+// `sorted_rows`: ORB, the query's rows in `order` (label by label), back to
+// back.
+template <typename Metric>
 int CountGuided(const DescriptorBlock& query, const GuidedLabels& labels,
                 const std::vector<uint32_t>& begin, const std::vector<uint32_t>& order,
-                const DescriptorBlock& db, const uint32_t* db_labels, const Metric& metric,
-                const DistanceFn& distance) {
-  using Distance = typename Metric::Distance;
-  thread_local std::vector<TwoNearestOf<Distance>> nearest;
-  nearest.assign(static_cast<size_t>(query.rows), TwoNearestOf<Distance>());
+                const std::vector<uint8_t>& sorted_rows, const DescriptorBlock& db,
+                const uint32_t* db_labels, const Metric& metric) {
+  thread_local GuidedScratch s;
+  const size_t num_labels = labels.distinct.size();
+  s.label_of_row.resize(static_cast<size_t>(db.rows));
+  s.start.assign(num_labels + 1, 0);
   for (int t = 0; t < db.rows; ++t) {
     const int l = labels.Find(db_labels[t]);
+    s.label_of_row[t] = l;
+    if (l >= 0) ++s.start[l + 1];
+  }
+  for (size_t l = 0; l < num_labels; ++l) s.start[l + 1] += s.start[l];
+  const uint32_t gathered = s.start[num_labels];
+  if (gathered == 0) return 0;
+  const size_t row_bytes = static_cast<size_t>(db.row_bytes);
+  s.rows.resize(static_cast<size_t>(gathered) * row_bytes);
+  const bool with_signs = db.laplacian != nullptr || db.positive_rows >= 0;
+  s.signs.resize(with_signs ? gathered : 0);
+  s.fill.assign(s.start.begin(), s.start.end() - 1);
+  for (int t = 0; t < db.rows; ++t) {
+    const int l = s.label_of_row[t];
     if (l < 0) continue;
-    for (uint32_t k = begin[l]; k < begin[l + 1]; ++k) {
-      const int q = static_cast<int>(order[k]);
-      if (SignsAgree(metric, query, q, db, t)) nearest[q].Update(distance(q, t), t);
+    const uint32_t at = s.fill[l]++;
+    if (row_bytes == 32) {
+      std::memcpy(s.rows.data() + at * 32, db.Row(t), 32);  // inlined
+    } else {
+      std::memcpy(s.rows.data() + at * row_bytes, db.Row(t), row_bytes);
     }
+    if (with_signs) s.signs[at] = RowSign(db, t);
   }
   int count = 0;
-  for (const TwoNearestOf<Distance>& nn : nearest) count += metric.Passes(nn);
+  for (size_t l = 0; l < num_labels; ++l) {
+    if (s.start[l + 1] == s.start[l]) continue;
+    DescriptorBlock group;
+    group.type = db.type;
+    group.row_bytes = db.row_bytes;
+    group.rows = static_cast<int>(s.start[l + 1] - s.start[l]);
+    group.data = s.rows.data() + s.start[l] * row_bytes;
+    if (with_signs) group.laplacian = s.signs.data() + s.start[l];
+    if constexpr (std::is_same_v<Metric, OrbMetric>) {
+      // The label's query rows against its keyframe rows, in one call.
+      thread_local std::vector<TwoNearest> nearest;
+      const uint32_t n = begin[l + 1] - begin[l];
+      nearest.resize(n);
+      TwoNearestHammingBatch(sorted_rows.data() + static_cast<size_t>(begin[l]) * row_bytes,
+                             static_cast<int>(n), group.data, group.rows, group.row_bytes,
+                             nearest.data());
+      for (const TwoNearest& nn : nearest) count += metric.Passes(nn);
+    } else {
+      for (uint32_t k = begin[l]; k < begin[l + 1]; ++k)
+        count += metric.Passes(metric.Nearest(query, static_cast<int>(order[k]), group));
+    }
+  }
   return count;
 }
 
@@ -256,6 +315,13 @@ GuidedMatcher::GuidedMatcher(const DescriptorBlock& query, const uint32_t* label
     order_.push_back(by_label[i].second);
   }
   begin_.push_back(static_cast<uint32_t>(rows));
+  if (query.type == FeatureType::kOrb && query.rows > 0) {
+    const size_t row_bytes = static_cast<size_t>(query.row_bytes);
+    sorted_rows_.resize(rows * row_bytes);
+    for (size_t i = 0; i < rows; ++i)
+      std::memcpy(sorted_rows_.data() + i * row_bytes, query.Row(static_cast<int>(order_[i])),
+                  row_bytes);
+  }
   // A keyframe row finds its label's query rows by a table lookup (a
   // vocabulary level's nodes have neighbouring ids) when the labels span
   // little, else by binary search.
@@ -287,12 +353,10 @@ int GuidedMatcher::Count(const DescriptorBlock& db, const uint32_t* labels, size
   }
   if (query_.type == FeatureType::kOrb) {
     const OrbMetric metric(options_);
-    return CountGuided(query_, labels_, begin_, order_, db, labels, metric,
-                       [&](int q, int t) { return PairDistance(metric, query_, q, db, t); });
+    return CountGuided(query_, labels_, begin_, order_, sorted_rows_, db, labels, metric);
   }
   const SurfMetric metric(options_);
-  return CountGuided(query_, labels_, begin_, order_, db, labels, metric,
-                     [&](int q, int t) { return PairDistance(metric, query_, q, db, t); });
+  return CountGuided(query_, labels_, begin_, order_, sorted_rows_, db, labels, metric);
 }
 
 int MatchDescriptors(const DescriptorBlock& query, const DescriptorBlock& db,

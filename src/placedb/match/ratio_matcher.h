@@ -119,6 +119,7 @@ class GuidedMatcher {
   GuidedLabels labels_;
   std::vector<uint32_t> begin_;  // label i's rows: order_[begin_[i], begin_[i + 1])
   std::vector<uint32_t> order_;  // query rows by label, then row
+  std::vector<uint8_t> sorted_rows_;  // ORB: the query's rows in order_, back to back
 };
 
 }  // namespace placedb

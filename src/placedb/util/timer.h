@@ -28,6 +28,9 @@ class Deadline {
   Deadline(const Timer& clock, double ms) : clock_(&clock), ms_(ms) {}
   bool enabled() const { return clock_ != nullptr && ms_ > 0.0; }
   bool passed() const { return enabled() && clock_->ElapsedMs() >= ms_; }
+  // Whether work expected to take `ms` milliseconds still ends before the
+  // deadline (always, without one).
+  bool Fits(double ms) const { return !enabled() || clock_->ElapsedMs() + ms < ms_; }
 
  private:
   const Timer* clock_ = nullptr;
