@@ -267,8 +267,8 @@ BowIndex BowIndex::FromImage(flat_file::Image image, const std::string& shown,
   auto fail = [&](const auto&... what) { PLACEDB_THROW_RUNTIME(shown, ": ", what...); };
   // The payload's checksum runs below, beside the checks that read the
   // payload (all of them bounded by the header, which is checked here).
-  flat_file::CheckSealedHeader(image, kBowIndexMagic, kBowIndexFormatVersion,
-                               "bag-of-words index", shown);
+  flat_file::CheckSealedHeader(image, kBowIndexMagic, kBowIndexFormatVersion, "bag-of-words index",
+                               shown);
   const auto header = flat_file::ReadHeader<BowIndexFileHeader>(image.data);
   const Vocabulary& vocab = *vocabulary;
   if (header.vocabulary_checksum != vocab.checksum()) {
@@ -497,8 +497,7 @@ std::vector<BowIndex::Scored> BowIndex::Query(const BowVector& query, size_t max
       // time per posting so far, still fit before it (not before a keyframe
       // has a score: the query examines at least one).
       if (timed && num_touched > 0) {
-        const uint64_t postings =
-            word_offsets_[query.words[i] + 1] - word_offsets_[query.words[i]];
+        const uint64_t postings = word_offsets_[query.words[i] + 1] - word_offsets_[query.words[i]];
         if (!deadline.Fits(static_cast<double>(postings) * scoring.ElapsedMs() /
                            static_cast<double>(std::max<size_t>(postings_done, 1)))) {
           if (stopped != nullptr) *stopped = true;

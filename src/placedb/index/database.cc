@@ -609,8 +609,8 @@ void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const 
         const cv::KeyPoint& kp = file_keypoints[offsets[i] + f];
         if (!std::isfinite(kp.pt.x) || !std::isfinite(kp.pt.y) || !std::isfinite(kp.size) ||
             !std::isfinite(kp.angle) || !std::isfinite(kp.response)) {
-          bad_keypoints = "keyframe " + std::to_string(all[i].id) +
-                          " has a keypoint that is not finite";
+          bad_keypoints =
+              "keyframe " + std::to_string(all[i].id) + " has a keypoint that is not finite";
           return;
         }
         if (feature_type_ == FeatureType::kSurf && (kp.class_id >= 0) != (f < positives[i])) {

@@ -415,7 +415,7 @@ Examination ExamineTimed(const Database& db, const GroupedFeatures& grouped,
   std::atomic<size_t> next{0}, examined{0};
   std::atomic<bool> stopped{false};
   WorstCost cost;
-  double match_ms = 0.0, verify_ms = 0.0;  // guarded by `mutex`
+  double match_ms = 0.0, verify_ms = 0.0;        // guarded by `mutex`
   const auto in_best = [&](const Examined& e) {  // under `mutex`
     if (best.size() < keep) return true;
     const Examined& worst = best.back().e;
@@ -446,7 +446,8 @@ Examination ExamineTimed(const Database& db, const GroupedFeatures& grouped,
       const double matched_ms = t.ElapsedMs();
       double verified_ms = 0.0;
       if (good >= options.min_matches) {
-        Examined e{index, db.keyframe(index).id, good, verify ? matches : std::vector<cv::DMatch>()};
+        Examined e{index, db.keyframe(index).id, good,
+                   verify ? matches : std::vector<cv::DMatch>()};
         bool candidate;
         {
           std::lock_guard<std::mutex> lock(mutex);

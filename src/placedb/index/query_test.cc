@@ -102,9 +102,8 @@ TEST_F(QueryTest, SkippedVerificationsNeverChangeTheRankedList) {
       options.top_k = top_k;
       QueryContext threaded;
       threaded.pool = &pool;
-      for (const QueryResult& r :
-           {QueryDatabase(*db_, Features(q), options), QueryDatabase(*db_, Features(q), options,
-                                                                     threaded)}) {
+      for (const QueryResult& r : {QueryDatabase(*db_, Features(q), options),
+                                   QueryDatabase(*db_, Features(q), options, threaded)}) {
         const size_t n = std::min<size_t>(top_k, every.ranked.size());
         ASSERT_EQ(r.ranked.size(), n) << "query " << q << " top " << top_k;
         for (size_t i = 0; i < n; ++i)

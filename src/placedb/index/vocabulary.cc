@@ -725,10 +725,9 @@ void Vocabulary::Words(const uint8_t* rows, int count, int node_level, uint32_t*
       const Node& n = nodes_[current[r]];
       if (level <= node_level) passed[r] = current[r];
       if (n.num_children == 0) continue;
-      current[r] = n.first_child +
-                   static_cast<uint32_t>(Nearest(type_, row_bytes_, rows + r * row_bytes,
-                                                 Centroid(n.first_child),
-                                                 static_cast<int>(n.num_children)));
+      current[r] = n.first_child + static_cast<uint32_t>(Nearest(
+                                       type_, row_bytes_, rows + r * row_bytes,
+                                       Centroid(n.first_child), static_cast<int>(n.num_children)));
       descended = true;
     }
     if (!descended) break;

@@ -362,9 +362,8 @@ PLACEDB_INLINE_AVX512 TwoNearest FewNearest(const FewRows<kRegs>& f, const uint8
   d = _mm512_mask_mov_epi32(none, f.valid, d);
   TwoNearest out;
   const uint32_t best = _mm512_reduce_min_epu32(d);
-  const uint32_t at = static_cast<uint32_t>(
-      __builtin_ctz(static_cast<unsigned>(_mm512_cmpeq_epu32_mask(d, _mm512_set1_epi32(
-                                                                         static_cast<int>(best))))));
+  const uint32_t at = static_cast<uint32_t>(__builtin_ctz(static_cast<unsigned>(
+      _mm512_cmpeq_epu32_mask(d, _mm512_set1_epi32(static_cast<int>(best))))));
   // The second: the smallest of the other lanes (a tie at the minimum
   // gives best again).
   const uint32_t next =
@@ -473,13 +472,13 @@ PLACEDB_TARGET_AVX512 void TwoNearestAvx512Both(const uint8_t* queries, int num_
   const __mmask32 partial_lanes =
       count < 32
           ? _mm512_cmplt_epu16_mask(row_of_lane, _mm512_set1_epi16(static_cast<short>(count)))
-          : _mm512_cmpge_epu16_mask(row_of_lane,
-                                    _mm512_set1_epi16(static_cast<short>(full * 32 - partial_base)));
+          : _mm512_cmpge_epu16_mask(
+                row_of_lane, _mm512_set1_epi16(static_cast<short>(full * 32 - partial_base)));
   thread_local std::vector<uint16_t> columns;
   columns.assign(static_cast<size_t>(steps) * 96, 0xffff);
   for (int i = 0; i < num_queries; ++i) {
-    const __m512i q2 = _mm512_broadcast_i64x4(
-        _mm256_loadu_si256(reinterpret_cast<const __m256i*>(queries + static_cast<size_t>(i) * 32)));
+    const __m512i q2 = _mm512_broadcast_i64x4(_mm256_loadu_si256(
+        reinterpret_cast<const __m256i*>(queries + static_cast<size_t>(i) * 32)));
     Lanes lanes{none, none, none};
     for (int k = 0; k < full; ++k) {
       const __m512i d = Distances32<false>(q2, db + static_cast<size_t>(k) * 1024, 0);
@@ -487,9 +486,9 @@ PLACEDB_TARGET_AVX512 void TwoNearestAvx512Both(const uint8_t* queries, int num_
       TrackColumn(columns.data() + static_cast<size_t>(k) * 96, d, i);
     }
     if (partial) {
-      const __m512i raw = count < 32
-                              ? Distances32<true>(q2, db, count)
-                              : Distances32<false>(q2, db + static_cast<size_t>(partial_base) * 32, 0);
+      const __m512i raw =
+          count < 32 ? Distances32<true>(q2, db, count)
+                     : Distances32<false>(q2, db + static_cast<size_t>(partial_base) * 32, 0);
       const __m512i d = _mm512_mask_mov_epi16(none, partial_lanes, raw);
       Track(lanes, d, partial_base);
       TrackColumn(columns.data() + static_cast<size_t>(full) * 96, d, i);
@@ -614,7 +613,8 @@ void TwoNearestHammingBatchWith(HammingKernel kernel, const uint8_t* queries, in
     return;
   }
 #endif
-  for (int i = 0; i < num_queries; ++i) out[i] = Run(kernel, queries + i * stride, db, count, bytes);
+  for (int i = 0; i < num_queries; ++i)
+    out[i] = Run(kernel, queries + i * stride, db, count, bytes);
 }
 
 void TwoNearestHammingBatch(const uint8_t* queries, int num_queries, const uint8_t* db, int count,

@@ -14,6 +14,8 @@
 #include <unistd.h>
 #endif
 
+#include "placedb/util/testing.h"
+
 namespace placedb {
 
 // Readable test parameters ("avx512" rather than "4-byte object").
@@ -258,8 +260,7 @@ TEST_P(HammingKernelTest, BatchAndBothEqualOneAtATime) {
           }
           const std::string what = std::string(ties ? "ties" : "random") + " bytes " +
                                    std::to_string(bytes) + " queries " +
-                                   std::to_string(num_queries) + " count " +
-                                   std::to_string(count);
+                                   std::to_string(num_queries) + " count " + std::to_string(count);
           std::vector<TwoNearest> batch(num_queries), forward(num_queries), backward(count);
           TwoNearestHammingBatchWith(kernel, queries.data(), num_queries, db.data(), count, bytes,
                                      batch.data());
@@ -272,8 +273,8 @@ TEST_P(HammingKernelTest, BatchAndBothEqualOneAtATime) {
             EXPECT_TRUE(same(forward[i], ref)) << what << " forward row " << i;
           }
           for (int j = 0; j < count; ++j) {
-            const TwoNearest ref =
-                TwoNearestHammingReference(db.data() + j * bytes, queries.data(), num_queries, bytes);
+            const TwoNearest ref = TwoNearestHammingReference(db.data() + j * bytes, queries.data(),
+                                                              num_queries, bytes);
             EXPECT_TRUE(same(backward[j], ref)) << what << " backward row " << j;
           }
         }
@@ -282,42 +283,25 @@ TEST_P(HammingKernelTest, BatchAndBothEqualOneAtATime) {
   }
 }
 
-#if defined(__x86_64__) && defined(__linux__)
-// XINUSE (XGETBV with ECX = 1): bit 2 says the upper halves of ymm0-15
-// may be non-zero, bit 6 those of zmm0-15. A kernel that returns with them
-// dirty makes the caller's SSE code merge upper halves on every instruction
-// (measured: the whole-keyframe match 1.5x slower); each kernel ends with
-// vzeroupper.
-bool XinuseSupported() {
-  unsigned eax, ebx, ecx, edx;
-  __asm__("cpuid" : "=a"(eax), "=b"(ebx), "=c"(ecx), "=d"(edx) : "a"(1), "c"(0));
-  if (!(ecx & (1u << 27))) return false;  // OSXSAVE
-  __asm__("cpuid" : "=a"(eax), "=b"(ebx), "=c"(ecx), "=d"(edx) : "a"(0xd), "c"(1));
-  return (eax & (1u << 2)) != 0;  // XGETBV with ECX = 1
-}
-__attribute__((noinline)) uint64_t UpperStateInUse() {
-  unsigned lo, hi;
-  __asm__ volatile("xgetbv" : "=a"(lo), "=d"(hi) : "c"(1));
-  return ((static_cast<uint64_t>(hi) << 32) | lo) & ((1u << 2) | (1u << 6));
-}
-
+// Every entry point returns with the upper vector state clean (see
+// testing_util::DirtyUpperState).
 TEST_P(HammingKernelTest, LeavesTheUpperVectorStateClean) {
-  if (!XinuseSupported()) GTEST_SKIP() << "XGETBV(1) not supported";
+  if (!testing_util::DirtyUpperStateKnown()) GTEST_SKIP() << "XGETBV(1) not supported";
   const auto db = RandomBytes(500 * 32, 21);
   const auto queries = RandomBytes(40 * 32, 22);
   std::vector<TwoNearest> a(40), b(500);
-  for (const int count : {5, 20, 32, 100, 500}) {
-    volatile uint32_t sink = TwoNearestHammingWith(GetParam(), queries.data(), db.data(), count, 32).best;
+  for (const int count : {5, 12, 20, 32, 100, 500}) {
+    volatile uint32_t sink =
+        TwoNearestHammingWith(GetParam(), queries.data(), db.data(), count, 32).best;
     (void)sink;
-    EXPECT_EQ(UpperStateInUse(), 0u) << "one query, count " << count;
+    EXPECT_FALSE(testing_util::DirtyUpperState()) << "one query, count " << count;
     TwoNearestHammingBatchWith(GetParam(), queries.data(), 40, db.data(), count, 32, a.data());
-    EXPECT_EQ(UpperStateInUse(), 0u) << "batch, count " << count;
+    EXPECT_FALSE(testing_util::DirtyUpperState()) << "batch, count " << count;
     TwoNearestHammingBothWith(GetParam(), queries.data(), 40, db.data(), count, 32, a.data(),
                               b.data());
-    EXPECT_EQ(UpperStateInUse(), 0u) << "both, count " << count;
+    EXPECT_FALSE(testing_util::DirtyUpperState()) << "both, count " << count;
   }
 }
-#endif
 
 INSTANTIATE_TEST_SUITE_P(AllKernels, HammingKernelTest,
                          ::testing::Values(HammingKernel::kReference, HammingKernel::kPopcnt,

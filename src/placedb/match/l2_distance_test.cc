@@ -16,6 +16,8 @@
 #include <unistd.h>
 #endif
 
+#include "placedb/util/testing.h"
+
 namespace placedb {
 
 // Readable test parameters ("avx512" rather than "4-byte object").
@@ -126,6 +128,29 @@ std::vector<int8_t> RandomSigns(int count, std::mt19937& rng) {
   std::vector<int8_t> signs(count);
   for (auto& s : signs) s = (rng() & 1) ? 1 : -1;
   return signs;
+}
+
+// Every entry point returns with the upper vector state clean (see
+// testing_util::DirtyUpperState).
+TEST_P(L2KernelTest, LeavesTheUpperVectorStateClean) {
+  if (!testing_util::DirtyUpperStateKnown()) GTEST_SKIP() << "XGETBV(1) not supported";
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> value(-1.0f, 1.0f);
+  for (const int dims : {64, 128, 37}) {
+    std::vector<float> db(static_cast<size_t>(dims) * 50), query(dims);
+    for (float& v : db) v = value(rng);
+    for (float& v : query) v = value(rng);
+    const std::vector<int8_t> signs = RandomSigns(50, rng);
+    for (const int count : {1, 7, 16, 50}) {
+      volatile float sink = L2SquaredWith(GetParam(), query.data(), db.data(), dims);
+      EXPECT_FALSE(testing_util::DirtyUpperState()) << "distance, dims " << dims;
+      sink = Run(query.data(), db.data(), count, dims, nullptr, 0).best;
+      EXPECT_FALSE(testing_util::DirtyUpperState()) << "two nearest, dims " << dims;
+      sink = Run(query.data(), db.data(), count, dims, signs.data(), 1).best;
+      EXPECT_FALSE(testing_util::DirtyUpperState()) << "two nearest with signs, dims " << dims;
+      (void)sink;
+    }
+  }
 }
 
 TEST_P(L2KernelTest, DistanceEqualsReference) {

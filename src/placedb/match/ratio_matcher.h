@@ -117,8 +117,8 @@ class GuidedMatcher {
   DescriptorBlock query_;
   MatchOptions options_;
   GuidedLabels labels_;
-  std::vector<uint32_t> begin_;  // label i's rows: order_[begin_[i], begin_[i + 1])
-  std::vector<uint32_t> order_;  // query rows by label, then row
+  std::vector<uint32_t> begin_;       // label i's rows: order_[begin_[i], begin_[i + 1])
+  std::vector<uint32_t> order_;       // query rows by label, then row
   std::vector<uint8_t> sorted_rows_;  // ORB: the query's rows in order_, back to back
 };
 
