@@ -32,6 +32,8 @@ struct PlaceDatabase::Impl {
   std::shared_ptr<const Vocabulary> vocabulary;
   std::optional<GrowingBowIndex> bow;
   ClusterSet clusters;
+  // One candidate's cost in recent queries under a deadline.
+  mutable CandidateCost candidate_cost;
   // Online mapping. Queries hold `state` shared while they run; a writer
   // holds it exclusively only to publish a prepared change. Writers take
   // `writer` first, one at a time.
@@ -187,6 +189,7 @@ QueryResult PlaceDatabase::Run(const FeatureSet& features, const std::vector<uin
   }
   context.pool = impl_->pool.get();
   context.image_dir = impl_->dir;
+  context.candidate_cost = &impl_->candidate_cost;
   QueryResult r = QueryDatabase(impl_->db, features, options, context);
   r.times.extract_ms = extract_ms;
   r.times.total_ms += extract_ms;

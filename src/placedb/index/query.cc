@@ -33,6 +33,12 @@ std::string QueryPrior::Check() const {
   return "";
 }
 
+void CandidateCost::Report(double worst_ms) {
+  double old = ms_.load();
+  while (!ms_.compare_exchange_weak(old, std::max(worst_ms, 0.9 * old))) {
+  }
+}
+
 QueryOptions QueryOptions::ForPartition() const {
   QueryOptions o = *this;
   if (verify.enabled) o.top_k = std::max(top_k, verify.num_candidates);
@@ -301,6 +307,7 @@ struct Examination {
   size_t verified = 0;
   bool stopped = false;  // the deadline cut the stages short
   double match_ms = 0.0, verify_ms = 0.0;
+  double costliest_ms = 0.0;  // one candidate's match + verify at most (timed runs)
 };
 
 // No deadline: every candidate matched (contiguous chunks over the pool,
@@ -491,6 +498,7 @@ Examination ExamineTimed(const Database& db, const GroupedFeatures& grouped,
   out.stopped = stopped.load();
   out.match_ms = match_ms;
   out.verify_ms = verify ? verify_ms : 0.0;
+  out.costliest_ms = cost.Get();
   return out;
 }
 
@@ -508,11 +516,17 @@ QueryResult RunStages(const Database& db, const FeatureSet& query, const QueryOp
 
   // Retrieve. Under a deadline the retriever may stop early (bag-of-words
   // scoring of a large database takes milliseconds): the match stage then
-  // takes the candidates found so far, the first always.
+  // takes the candidates found so far, the first always. It stops early
+  // enough to leave one candidate's cost (the session's estimate) free.
   Timer stage;
   bool retrieve_stopped = false;
+  const double reserve =
+      deadline.enabled() && context.candidate_cost != nullptr ? context.candidate_cost->Get() : 0.0;
+  const Deadline retrieve_deadline =
+      deadline.enabled() ? Deadline(clock, std::max(options.deadline_ms - reserve, 1e-9))
+                         : Deadline();
   const std::vector<Candidate> candidates =
-      retriever.Retrieve(db, query, among, deadline, &retrieve_stopped);
+      retriever.Retrieve(db, query, among, retrieve_deadline, &retrieve_stopped);
   result.times.retrieve_ms = stage.ElapsedMs();
 
   // Match and verify. SURF: the query's rows grouped by Laplacian sign,
@@ -521,6 +535,8 @@ QueryResult RunStages(const Database& db, const FeatureSet& query, const QueryOp
   Examination e = deadline.enabled()
                       ? ExamineTimed(db, grouped, candidates, options, context, deadline)
                       : ExamineAll(db, grouped, candidates, options, context);
+  if (deadline.enabled() && context.candidate_cost != nullptr && e.examined > 0)
+    context.candidate_cost->Report(e.costliest_ms);
   result.num_examined = e.examined;
   result.num_verified = e.verified;
   result.times.match_ms = e.match_ms;

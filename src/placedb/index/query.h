@@ -13,6 +13,7 @@
 // transport; QueryResult converts to and from JSON for the wire and reports.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -140,6 +141,22 @@ void from_json(const nlohmann::json& j, RankedKeyframe& r);
 // contiguous rows, finite keypoint coordinates.
 void ValidateQueryFeatures(const FeatureSet& features, const Database& db);
 
+// What one candidate's match and verify cost in recent queries under a
+// deadline: a decaying maximum of each query's costliest candidate (each
+// report lowers the old value by 10 % before taking the larger). A session
+// keeps one, so that the retrieve stage stops early enough for the first
+// candidate, which a query always examines, to end by the deadline.
+// Thread-safe.
+class CandidateCost {
+ public:
+  // Milliseconds; 0 until a query has reported.
+  double Get() const { return ms_.load(std::memory_order_relaxed); }
+  void Report(double worst_ms);
+
+ private:
+  std::atomic<double> ms_{0.0};
+};
+
 // Where and how QueryDatabase runs.
 struct QueryContext {
   // Retrieve stage; nullptr: exhaustive.
@@ -156,6 +173,10 @@ struct QueryContext {
   const ClusterSet* clusters = nullptr;
   // Folder the keyframes' stored images are relative to ("": left relative).
   std::string image_dir;
+  // Under a deadline: the session's estimate of one candidate's cost, which
+  // the retrieve stage leaves free before the deadline (and which the query
+  // updates); nullptr: none is left.
+  CandidateCost* candidate_cost = nullptr;
 };
 
 // Runs retrieve -> match -> verify -> decide for already-extracted features.

@@ -331,5 +331,43 @@ TEST_F(SearchTest, DeadlineStopsEarlyAndSaysSo) {
   }
 }
 
+// The retrieve stage leaves the session's estimate of one candidate's cost
+// free before the deadline, so that the first candidate, always examined,
+// still ends in time: a query reports its costliest candidate; with an
+// estimate as long as the whole budget the bag-of-words stage stops at once
+// (deadline_reached, though the budget itself is far from spent).
+TEST_F(SearchTest, RetrievalLeavesOneCandidatesCostBeforeTheDeadline) {
+  const PlaceDatabase db = PlaceDatabase::Open(Dir());
+  QueryOptions bow;
+  bow.retrieval.method = RetrievalMethod::kBow;
+  bow.deadline_ms = 1e4;
+  QueryContext context;
+  context.bow = db.bow_index();
+  CandidateCost cost;
+  context.candidate_cost = &cost;
+  const QueryResult first = QueryDatabase(db.database(), Features(42), bow, context);
+  EXPECT_FALSE(first.deadline_reached);
+  EXPECT_GT(cost.Get(), 0.0);
+  EXPECT_LT(cost.Get(), first.times.total_ms);
+  cost.Report(1e4);
+  const QueryResult squeezed = QueryDatabase(db.database(), Features(42), bow, context);
+  EXPECT_TRUE(squeezed.deadline_reached);
+  EXPECT_LT(squeezed.times.total_ms, 1e4);
+  EXPECT_GE(squeezed.num_examined, 1u);
+  // Without a session estimate nothing is left free.
+  context.candidate_cost = nullptr;
+  EXPECT_FALSE(QueryDatabase(db.database(), Features(42), bow, context).deadline_reached);
+  // A decaying maximum: a smaller report lowers it by 10 %, a larger one
+  // replaces it.
+  CandidateCost c;
+  EXPECT_EQ(c.Get(), 0.0);
+  c.Report(2.0);
+  EXPECT_DOUBLE_EQ(c.Get(), 2.0);
+  c.Report(1.0);
+  EXPECT_DOUBLE_EQ(c.Get(), 1.8);
+  c.Report(3.0);
+  EXPECT_DOUBLE_EQ(c.Get(), 3.0);
+}
+
 }  // namespace
 }  // namespace placedb
