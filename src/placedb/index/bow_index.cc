@@ -496,9 +496,14 @@ std::vector<BowIndex::Scored> BowIndex::Query(const BowVector& query, size_t max
       // Under a deadline, a word is scored only while its postings, at the
       // time per posting so far, still fit before it (not before a keyframe
       // has a score: the query examines at least one).
+      // What remains after the word is the selection of the best among the
+      // touched keyframes and resetting them: two steps per touched
+      // keyframe, each counted like a posting (measured: 1.4 ns for a
+      // selection step, 2.6 ns per posting, at 100 000 keyframes).
       if (timed && num_touched > 0) {
         const uint64_t postings = word_offsets_[query.words[i] + 1] - word_offsets_[query.words[i]];
-        if (!deadline.Fits(static_cast<double>(postings) * scoring.ElapsedMs() /
+        const double steps = static_cast<double>(3 * postings + 2 * num_touched);
+        if (!deadline.Fits(steps * scoring.ElapsedMs() /
                            static_cast<double>(std::max<size_t>(postings_done, 1)))) {
           if (stopped != nullptr) *stopped = true;
           break;

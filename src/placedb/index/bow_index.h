@@ -158,8 +158,9 @@ class BowIndex {
   // beyond the vocabulary, or a bad `among`.
   //
   // Under `deadline`, once some keyframe has a score, a query word is
-  // scored only while its posting list, at the time per posting so far,
-  // still ends before the deadline; else the scoring stops and *stopped
+  // scored only while its posting list and the selection among the touched
+  // keyframes after it, at the time per posting so far, still end before
+  // the deadline; else the scoring stops and *stopped
   // (when given) is set: the scores are then those of the query's words
   // scored so far, a partial ranking, so that a query's time budget also
   // bounds this stage.

@@ -35,7 +35,7 @@ std::string QueryPrior::Check() const {
 
 void CandidateCost::Report(double worst_ms) {
   double old = ms_.load();
-  while (!ms_.compare_exchange_weak(old, std::max(worst_ms, 0.9 * old))) {
+  while (!ms_.compare_exchange_weak(old, std::max(worst_ms, 0.98 * old))) {
   }
 }
 
