@@ -143,7 +143,7 @@ void ValidateQueryFeatures(const FeatureSet& features, const Database& db);
 
 // What one candidate's match and verify cost in recent queries under a
 // deadline: a decaying maximum of each query's costliest candidate (each
-// report lowers the old value by 10 % before taking the larger). A session
+// report lowers the old value by 2 % before taking the larger). A session
 // keeps one, so that the retrieve stage stops early enough for the first
 // candidate, which a query always examines, to end by the deadline.
 // Thread-safe.

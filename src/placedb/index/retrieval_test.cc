@@ -357,14 +357,14 @@ TEST_F(SearchTest, RetrievalLeavesOneCandidatesCostBeforeTheDeadline) {
   // Without a session estimate nothing is left free.
   context.candidate_cost = nullptr;
   EXPECT_FALSE(QueryDatabase(db.database(), Features(42), bow, context).deadline_reached);
-  // A decaying maximum: a smaller report lowers it by 10 %, a larger one
+  // A decaying maximum: a smaller report lowers it by 2 %, a larger one
   // replaces it.
   CandidateCost c;
   EXPECT_EQ(c.Get(), 0.0);
   c.Report(2.0);
   EXPECT_DOUBLE_EQ(c.Get(), 2.0);
   c.Report(1.0);
-  EXPECT_DOUBLE_EQ(c.Get(), 1.8);
+  EXPECT_DOUBLE_EQ(c.Get(), 1.96);
   c.Report(3.0);
   EXPECT_DOUBLE_EQ(c.Get(), 3.0);
 }
