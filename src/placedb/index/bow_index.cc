@@ -183,11 +183,7 @@ BowIndex BowIndex::Build(std::shared_ptr<const Vocabulary> vocabulary, const Dat
     vectors[i] = MakeBowVector(*vocabulary, options.direct_level, db.Descriptors(i), &nodes[i]);
     if (progress != nullptr) progress->Advance(1);
   };
-  if (pool != nullptr) {
-    pool->ParallelFor(num_keyframes, transform);
-  } else {
-    for (size_t i = 0; i < num_keyframes; ++i) transform(i);
-  }
+  ForEach(pool, num_keyframes, transform);
   uint64_t entries = 0, features = 0;
   for (size_t i = 0; i < num_keyframes; ++i) {
     entries += vectors[i].size();

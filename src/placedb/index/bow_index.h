@@ -160,10 +160,9 @@ class BowIndex {
   // Under `deadline`, once some keyframe has a score, a query word is
   // scored only while its posting list and the selection among the touched
   // keyframes after it, at the time per posting so far, still end before
-  // the deadline; else the scoring stops and *stopped
-  // (when given) is set: the scores are then those of the query's words
-  // scored so far, a partial ranking, so that a query's time budget also
-  // bounds this stage.
+  // the deadline; else the scoring stops and *stopped (when given) is set:
+  // the scores are then those of the query's words scored so far, a partial
+  // ranking, so that a query's time budget also bounds this stage.
   std::vector<Scored> Query(const BowVector& query, size_t max_results,
                             const std::vector<uint32_t>* among = nullptr,
                             const Deadline& deadline = Deadline(), bool* stopped = nullptr) const;

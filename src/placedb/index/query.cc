@@ -263,10 +263,6 @@ size_t KeptAfterMatching(const QueryOptions& options) {
                                                     : options.top_k);
 }
 
-}  // namespace
-
-namespace {
-
 // The ranked entry of an examined keyframe (its score the matches until
 // verified).
 RankedKeyframe Describe(const Database& db, const Examined& e, const std::string& image_dir) {
@@ -322,10 +318,7 @@ Examination ExamineAll(const Database& db, const GroupedFeatures& grouped,
   const size_t keep = KeptAfterMatching(options);
   const bool need_matches = options.verify.enabled;
   const size_t n = candidates.size();
-  const size_t chunks =
-      context.pool == nullptr
-          ? 1
-          : std::max<size_t>(1, std::min(n, static_cast<size_t>(context.pool->size())));
+  const size_t chunks = UsefulThreads(context.pool, n);
   std::vector<std::vector<Examined>> partial(chunks);
   auto match_chunk = [&](size_t c) {
     std::vector<Examined>& kept = partial[c];
@@ -342,11 +335,7 @@ Examination ExamineAll(const Database& db, const GroupedFeatures& grouped,
     }
     KeepBest(&kept, keep);
   };
-  if (chunks == 1) {
-    match_chunk(0);
-  } else {
-    context.pool->ParallelFor(chunks, match_chunk);
-  }
+  ForEach(context.pool, chunks, match_chunk);
   out.examined = n;
   std::vector<Examined> best;
   for (auto& p : partial) {
@@ -367,12 +356,7 @@ Examination ExamineAll(const Database& db, const GroupedFeatures& grouped,
     ranked[i].score = ranked[i].num_inliers;
   };
   const auto fill_range = [&](size_t first, size_t last) {
-    if (first >= last) return;
-    if (context.pool == nullptr || last - first <= 1) {
-      for (size_t i = first; i < last; ++i) fill(i);
-    } else {
-      context.pool->ParallelFor(last - first, [&](size_t i) { fill(first + i); });
-    }
+    if (first < last) ForEach(context.pool, last - first, [&](size_t i) { fill(first + i); });
   };
   // Only what can reach the top k is verified: once k candidates are
   // verified, one with fewer matches than the k-th best inlier count so far
@@ -483,15 +467,7 @@ Examination ExamineTimed(const Database& db, const GroupedFeatures& grouped,
       cost.Add(matched_ms + verified_ms);
     }
   };
-  const size_t threads =
-      context.pool == nullptr
-          ? 1
-          : std::max<size_t>(1, std::min(n, static_cast<size_t>(context.pool->size())));
-  if (threads == 1) {
-    worker(0);
-  } else {
-    context.pool->ParallelFor(threads, worker);
-  }
+  ForEach(context.pool, UsefulThreads(context.pool, n), worker);
   for (Kept& k : best) out.ranked.push_back(std::move(k.r));
   out.examined = examined.load();
   if (verify) out.verified = out.ranked.size();

@@ -234,15 +234,6 @@ uint64_t UniformBelow(std::mt19937_64& rng, uint64_t n) {
 // Uniform in [0, 1).
 double Uniform01(std::mt19937_64& rng) { return static_cast<double>(rng() >> 11) * 0x1.0p-53; }
 
-// Runs fn(i) for i in [0, n) on the pool, or on this thread without one.
-void ForEach(ThreadPool* pool, size_t n, const std::function<void(size_t)>& fn) {
-  if (pool != nullptr) {
-    pool->ParallelFor(n, fn);
-  } else {
-    for (size_t i = 0; i < n; ++i) fn(i);
-  }
-}
-
 // Runs fn(begin, end) over chunks of kChunkRows rows of [0, n): the chunks,
 // not the threads, decide what is computed together.
 constexpr size_t kChunkRows = 4096;
@@ -554,15 +545,15 @@ Vocabulary Vocabulary::Train(const std::vector<DescriptorBlock>& blocks,
   std::memcpy(w + at.centroids, centroids.data(), centroids.size());
 
   // IDF: the documents (blocks) in which each word occurs, by the finished
-  // tree's Word().
+  // tree's Words().
   Vocabulary tree;
   tree.Bind(image);
   std::vector<std::vector<uint32_t>> doc_words(blocks.size());
   ForEach(pool, blocks.size(), [&](size_t d) {
     const DescriptorBlock& b = blocks[d];
     std::vector<uint32_t>& words = doc_words[d];
-    words.reserve(b.rows);
-    for (int r = 0; r < b.rows; ++r) words.push_back(tree.Word(b.Row(r)));
+    words.resize(static_cast<size_t>(std::max(b.rows, 0)));
+    tree.Words(b.data, b.rows, -1, words.data(), nullptr);
     std::sort(words.begin(), words.end());
     words.erase(std::unique(words.begin(), words.end()), words.end());
     if (progress != nullptr) progress->Advance(1);
@@ -739,17 +730,9 @@ void Vocabulary::Words(const uint8_t* rows, int count, int node_level, uint32_t*
 }
 
 uint32_t Vocabulary::Word(const uint8_t* row, int node_level, uint32_t* node) const {
-  uint32_t current = 0, passed = 0;
-  for (int level = 0;; ++level) {
-    if (level <= node_level) passed = current;
-    const Node& n = nodes_[current];
-    if (n.num_children == 0) break;
-    current = n.first_child +
-              static_cast<uint32_t>(Nearest(type_, row_bytes_, row, Centroid(n.first_child),
-                                            static_cast<int>(n.num_children)));
-  }
-  if (node != nullptr && node_level >= 0) *node = passed;
-  return nodes_[current].word;
+  uint32_t word = 0;
+  Words(row, 1, node_level, &word, node);
+  return word;
 }
 
 }  // namespace placedb

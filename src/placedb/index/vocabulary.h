@@ -293,10 +293,11 @@ class Vocabulary {
   // counted from the root = 0), or the leaf when the leaf is above that
   // level: the direct index's node.
   uint32_t Word(const uint8_t* row, int node_level = -1, uint32_t* node = nullptr) const;
-  // Word() of `count` rows stored back to back: words[i] (and, with `nodes`,
-  // nodes[i]) for row i, the same answers. The rows descend together, level
-  // by level, each prefetching the children it compares with next, so that
-  // the tree's cache misses overlap instead of following one another.
+  // Word() of `count` rows stored back to back: words[i] (and, with `nodes`
+  // and node_level >= 0, nodes[i]) for row i. The rows descend together,
+  // level by level, each prefetching the children it compares with next, so
+  // that the tree's cache misses overlap instead of following one another.
+  // Word() is this for one row.
   void Words(const uint8_t* rows, int count, int node_level, uint32_t* words,
              uint32_t* nodes) const;
   // The IDF weight of `word` (< num_words()).

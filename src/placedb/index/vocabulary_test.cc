@@ -284,6 +284,34 @@ TEST(Vocabulary, WordIsTheBruteForceDescent) {
   }
 }
 
+// The batched descent (rows going down together, prefetching ahead) gives
+// every row the brute-force word and node, with and without nodes asked for.
+TEST(Vocabulary, WordsOfManyRowsAreTheBruteForceDescent) {
+  for (const Synthetic& s : {MakeOrb(40, 30, 10, 6), MakeSurf(40, 30, 0.1, 6)}) {
+    SCOPED_TRACE(FeatureTypeName(s.type));
+    const Vocabulary v = Vocabulary::Train(s.Blocks(), Options(4, 4), nullptr, nullptr);
+    const int count = static_cast<int>(s.rows());
+    ASSERT_GT(count, 100);
+    for (int level = -1; level <= 5; ++level) {
+      std::vector<uint32_t> words(count, UINT32_MAX), nodes(count, UINT32_MAX);
+      v.Words(s.Row(0), count, level, words.data(), nodes.data());
+      std::vector<uint32_t> words_only(count, UINT32_MAX);
+      v.Words(s.Row(0), count, level, words_only.data(), nullptr);
+      for (int r = 0; r < count; ++r) {
+        uint32_t expected_node = 0;
+        const uint32_t expected = BruteForceWord(v, s.Row(r), level, &expected_node);
+        ASSERT_EQ(words[r], expected) << "row " << r << " level " << level;
+        ASSERT_EQ(words_only[r], expected) << "row " << r << " level " << level;
+        if (level >= 0) {
+          ASSERT_EQ(nodes[r], expected_node) << "row " << r << " level " << level;
+        } else {
+          ASSERT_EQ(nodes[r], UINT32_MAX) << "row " << r << ": no level, no node written";
+        }
+      }
+    }
+  }
+}
+
 TEST(Vocabulary, TreeShapeAndEarlyLeaves) {
   // 1000 rows, branching 10: the third level's nodes hold about 10 rows, so
   // many of them stop before depth 4.

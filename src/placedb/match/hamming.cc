@@ -396,32 +396,13 @@ PLACEDB_TARGET_AVX512 TwoNearest TwoNearestAvx512Dirty(const uint8_t* query, con
   return out;
 }
 
-PLACEDB_TARGET_AVX512 TwoNearest TwoNearestAvx512(const uint8_t* query, const uint8_t* db,
-                                                  int count, int bytes) {
-  // A few rows (guided matching's rows of one vocabulary node, a
-  // vocabulary node's children) stay in registers: a masked 32-row step and
-  // its reduction took 40-50 ns for any count below 32.
-  if (bytes != 32) return TwoNearestPopcnt(query, db, count, bytes);
-  TwoNearest out;
-  if (count <= 0) return out;
-  if (count <= 8) {
-    out = FewNearest<4>(LoadFewRows<4>(db, count), query);
-  } else if (count <= kAvx512MinRows) {
-    out = FewNearest<8>(LoadFewRows<8>(db, count), query);
-  } else {
-    out = TwoNearestAvx512Dirty(query, db, count);
-  }
-  // GCC 12 emits no vzeroupper on these kernels' return: the caller's SSE
-  // code (the ratio test's double arithmetic) then paid a merge of the
-  // dirty upper halves on every instruction. Measured: the whole-keyframe
-  // match ran 1.5x slower than its distances. Every SIMD kernel leaves the
-  // upper state clean (hamming_test checks it).
-  _mm256_zeroupper();
-  return out;
-}
-
-PLACEDB_TARGET_AVX512 void TwoNearestAvx512Batch(const uint8_t* queries, int num_queries,
-                                                 const uint8_t* db, int count, TwoNearest* out) {
+// The two nearest of each of `num_queries` rows (32 bytes, back to back)
+// among `count` rows, without the final vzeroupper. A few rows (guided
+// matching's rows of one vocabulary node, a vocabulary node's children) are
+// loaded into registers once for all the queries: a masked 32-row step and
+// its reduction took 40-50 ns for any count below 32.
+PLACEDB_INLINE_AVX512 void NearestAvx512Dirty(const uint8_t* queries, int num_queries,
+                                              const uint8_t* db, int count, TwoNearest* out) {
   if (count <= 0) {
     for (int i = 0; i < num_queries; ++i) out[i] = TwoNearest();
   } else if (count <= 8) {
@@ -436,6 +417,25 @@ PLACEDB_TARGET_AVX512 void TwoNearestAvx512Batch(const uint8_t* queries, int num
     for (int i = 0; i < num_queries; ++i)
       out[i] = TwoNearestAvx512Dirty(queries + static_cast<size_t>(i) * 32, db, count);
   }
+}
+
+// GCC 12 emits no vzeroupper on these kernels' return: the caller's SSE code
+// (the ratio test's double arithmetic) then paid a merge of the dirty upper
+// halves on every instruction. Measured: the whole-keyframe match ran 1.5x
+// slower than its distances. Every SIMD kernel leaves the upper state clean
+// (hamming_test checks it).
+PLACEDB_TARGET_AVX512 TwoNearest TwoNearestAvx512(const uint8_t* query, const uint8_t* db,
+                                                  int count, int bytes) {
+  if (bytes != 32) return TwoNearestPopcnt(query, db, count, bytes);
+  TwoNearest out;
+  NearestAvx512Dirty(query, 1, db, count, &out);
+  _mm256_zeroupper();
+  return out;
+}
+
+PLACEDB_TARGET_AVX512 void TwoNearestAvx512Batch(const uint8_t* queries, int num_queries,
+                                                 const uint8_t* db, int count, TwoNearest* out) {
+  NearestAvx512Dirty(queries, num_queries, db, count, out);
   _mm256_zeroupper();
 }
 
@@ -622,13 +622,26 @@ void TwoNearestHammingBatch(const uint8_t* queries, int num_queries, const uint8
   TwoNearestHammingBatchWith(ActiveHammingKernel(), queries, num_queries, db, count, bytes, out);
 }
 
+namespace {
+// Whether TwoNearestHammingBothWith computes each distance once: the
+// AVX-512 kernel's limits (16-bit row indices within one chunk).
+bool BothInOnePass(Kernel kernel, int num_queries, int count, int bytes) {
+#if PLACEDB_X86
+  return kernel == Kernel::kAvx512 && bytes == 32 && num_queries >= 1 && num_queries <= 65535 &&
+         count >= 1 && count <= kAvx512ChunkRows;
+#else
+  (void)kernel, (void)num_queries, (void)count, (void)bytes;
+  return false;
+#endif
+}
+}  // namespace
+
 void TwoNearestHammingBothWith(HammingKernel kernel, const uint8_t* queries, int num_queries,
                                const uint8_t* db, int count, int bytes, TwoNearest* forward,
                                TwoNearest* backward) {
   if (!HammingKernelAvailable(kernel)) kernel = Kernel::kReference;
 #if PLACEDB_X86
-  if (kernel == Kernel::kAvx512 && bytes == 32 && num_queries >= 1 && num_queries <= 65535 &&
-      count >= 1 && count <= kAvx512ChunkRows) {
+  if (BothInOnePass(kernel, num_queries, count, bytes)) {
     TwoNearestAvx512Both(queries, num_queries, db, count, forward, backward);
     return;
   }
@@ -643,12 +656,8 @@ void TwoNearestHammingBoth(const uint8_t* queries, int num_queries, const uint8_
                             backward);
 }
 
-bool HammingBothIsOnePass() {
-#if PLACEDB_X86
-  return ActiveHammingKernel() == Kernel::kAvx512;
-#else
-  return false;
-#endif
+bool HammingBothIsOnePass(int num_queries, int count, int bytes) {
+  return BothInOnePass(ActiveHammingKernel(), num_queries, count, bytes);
 }
 
 bool HammingKernelAvailable(HammingKernel kernel) {

@@ -42,10 +42,11 @@ void TwoNearestHammingBatch(const uint8_t* queries, int num_queries, const uint8
 // TwoNearestHamming(db row j, queries, num_queries), the same answers (ties:
 // the lower index). The AVX-512 kernel computes each distance once for
 // both (rows of 32 bytes, count <= 65536, num_queries < 65536); the others
-// scan twice (HammingBothIsOnePass says which).
+// scan twice. HammingBothIsOnePass says whether a call with these sizes
+// computes each distance once, with the active kernel.
 void TwoNearestHammingBoth(const uint8_t* queries, int num_queries, const uint8_t* db, int count,
                            int bytes, TwoNearest* forward, TwoNearest* backward);
-bool HammingBothIsOnePass();
+bool HammingBothIsOnePass(int num_queries, int count, int bytes);
 
 // The kernels, for tests and benchmarks; TwoNearestHamming uses
 // ActiveHammingKernel(). The numeric values are stable (benchmark arguments).

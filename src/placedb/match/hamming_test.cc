@@ -313,6 +313,19 @@ INSTANTIATE_TEST_SUITE_P(AllKernels, HammingKernelTest,
 // ---------------------------------------------------------------------------
 // Kernel selection.
 
+// HammingBothIsOnePass answers for the sizes asked about: only the AVX-512
+// kernel, 32-byte rows and the kernel's limits take one pass.
+TEST(HammingKernelSelectionTest, BothIsOnePassOnlyWithinTheKernelsLimits) {
+  const bool avx512 = ActiveHammingKernel() == HammingKernel::kAvx512;
+  EXPECT_EQ(HammingBothIsOnePass(500, 400, 32), avx512);
+  EXPECT_EQ(HammingBothIsOnePass(1, 65536, 32), avx512);
+  EXPECT_FALSE(HammingBothIsOnePass(500, 400, 61));
+  EXPECT_FALSE(HammingBothIsOnePass(500, 65537, 32));
+  EXPECT_FALSE(HammingBothIsOnePass(65536, 400, 32));
+  EXPECT_FALSE(HammingBothIsOnePass(0, 400, 32));
+  EXPECT_FALSE(HammingBothIsOnePass(500, 0, 32));
+}
+
 TEST(HammingKernelSelectionTest, NamesRoundTrip) {
   for (int k = 0; k < kNumHammingKernels; ++k) {
     const auto kernel = static_cast<HammingKernel>(k);

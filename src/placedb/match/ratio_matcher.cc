@@ -88,7 +88,7 @@ struct OrbMetric {
                   std::vector<TwoNearestOf<uint32_t>>* forward,
                   std::vector<TwoNearestOf<uint32_t>>* backward) const {
     forward->resize(static_cast<size_t>(from.rows));
-    if (want_backward && HammingBothIsOnePass()) {
+    if (want_backward && HammingBothIsOnePass(from.rows, in.rows, in.row_bytes)) {
       backward->resize(static_cast<size_t>(in.rows));
       TwoNearestHammingBoth(from.data, from.rows, in.data, in.rows, in.row_bytes, forward->data(),
                             backward->data());

@@ -1,5 +1,6 @@
 #include "placedb/util/thread_pool.h"
 
+#include <algorithm>
 #include <atomic>
 #include <exception>
 
@@ -93,6 +94,19 @@ void ThreadPool::ParallelFor(size_t n, const std::function<void(size_t)>& fn) {
   std::unique_lock<std::mutex> lock(done_mutex);
   done_cv.wait(lock, [&] { return running == 0; });
   if (error) std::rethrow_exception(error);
+}
+
+void ForEach(ThreadPool* pool, size_t n, const std::function<void(size_t)>& fn) {
+  if (pool != nullptr) {
+    pool->ParallelFor(n, fn);
+  } else {
+    for (size_t i = 0; i < n; ++i) fn(i);
+  }
+}
+
+size_t UsefulThreads(const ThreadPool* pool, size_t n) {
+  if (pool == nullptr) return 1;
+  return std::max<size_t>(1, std::min(n, static_cast<size_t>(pool->size())));
 }
 
 }  // namespace placedb

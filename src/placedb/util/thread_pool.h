@@ -41,4 +41,12 @@ class ThreadPool {
   bool stop_ = false;
 };
 
+// Runs fn(i) for i in [0, n) on `pool` (ParallelFor), or in order on the
+// calling thread when there is no pool (the first exception then stops it).
+void ForEach(ThreadPool* pool, size_t n, const std::function<void(size_t)>& fn);
+
+// How many threads n items can keep busy: the pool's size, at most n, at
+// least 1 (1 without a pool).
+size_t UsefulThreads(const ThreadPool* pool, size_t n);
+
 }  // namespace placedb
