@@ -2,6 +2,7 @@
 // ground-truth pose. Produced by the dataset readers, consumed by build/query.
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <opencv2/core.hpp>
 #include <optional>
@@ -11,6 +12,61 @@
 #include "placedb/util/pose.h"
 
 namespace placedb {
+
+// Image files are decoded only after their header says how many pixels they
+// hold: a PNG of under 1 MB can declare 30000 x 30000 pixels (2.7 GB of BGR).
+// The default bound, 40 megapixels, is 120 MB of BGR: above any camera frame
+// placedb is meant for (8K video is 33 megapixels; the sample data is at most
+// 800 x 640), and small enough that a few frames decoded at once on every
+// core stay far from a machine's memory.
+constexpr int64_t kDefaultMaxImagePixels = 40000000;
+
+struct ImageReadOptions {
+  // Largest image decoded, in pixels (width x height as the file's header
+  // declares them, checked before anything is decoded); also the largest
+  // simulated camera (Frame::resize_to). Default 40 000 000; range
+  // [1, 2^30] (2^30 is OpenCV's own limit).
+  int64_t max_pixels = kDefaultMaxImagePixels;
+
+  std::string Check() const;
+};
+
+// What an image file's first bytes say: its format and size. Formats read:
+// PNG, JPEG (baseline, progressive, lossless), BMP, PNM (P1 to P6), PAM
+// (P7), PFM (PF, Pf) and WebP (VP8, VP8L, VP8X), found by the same signatures
+// OpenCV's decoders check. Any other format (TIFF, OpenEXR, JPEG 2000,
+// Radiance HDR, Sun raster, ...) is not read: those decoders size their
+// buffers from fields a header check here would have to trust as well.
+struct ImageHeader {
+  std::string format;  // "png", "jpeg", "bmp", "pnm", "pam", "pfm", "webp"
+  int64_t width = 0, height = 0;
+};
+// The header of the encoded image `data`; std::nullopt, and why in `*error`,
+// for an unknown format or a header cut short or impossible (a side of 0 or
+// above 2^31 - 1).
+std::optional<ImageHeader> ReadImageHeader(const uint8_t* data, size_t size, std::string* error);
+
+// An image decoded as 8-bit BGR (cv::IMREAD_COLOR, as cv::imread would),
+// with what went wrong: `image` is empty when `error` is set. `too_large` is
+// set (and nothing was decoded) when the header declares more than
+// max_pixels.
+struct DecodedImage {
+  cv::Mat image;
+  std::string error;
+  bool too_large = false;
+};
+// Decodes encoded image bytes (a file's, a message's). `what` names them in
+// `error`. Never throws for bad bytes.
+DecodedImage DecodeImage(const uint8_t* data, size_t size, const ImageReadOptions& options,
+                         const std::string& what);
+// Reads the regular file `path` once (at most 12 bytes per allowed pixel
+// plus 16 MiB: larger is refused before reading) and decodes it as
+// DecodeImage does. A path that is not a regular file (a FIFO, a device, a
+// folder) is an error, never a wait.
+DecodedImage TryReadImageFile(const std::string& path, const ImageReadOptions& options);
+// The same, throwing std::invalid_argument with the error ("cannot read
+// image PATH: ...", or "image PATH is W x H pixels, more than ...").
+cv::Mat ReadImageFile(const std::string& path, const ImageReadOptions& options);
 
 struct Frame {
   int id = 0;               // 1-based position in the source listing (folder, list file, rgb.txt)
@@ -24,10 +80,15 @@ struct Frame {
   // When not empty, the image is brought to this size as it is read: a
   // smaller camera, simulated (area interpolation down, bilinear up).
   cv::Size resize_to;
+  // How image_path is decoded (its pixel bound).
+  ImageReadOptions read;
 };
 
-// Reads a frame's image as 8-bit BGR (resized to frame.resize_to when set);
-// an empty Mat when it cannot be read or decoded.
+// Reads a frame's image as 8-bit BGR (resized to frame.resize_to when set),
+// through TryReadImageFile; an empty Mat when it cannot be read or decoded.
+// std::invalid_argument when the file declares more than read.max_pixels
+// pixels, or resize_to is larger than that: the bound is never skipped over
+// silently.
 cv::Mat LoadFrameImage(const Frame& frame);
 
 // Frames first..last of a listing (1-based positions; last 0: to the end).
@@ -42,5 +103,7 @@ std::string FrameRangeSuffix(int first, int last);
 
 // Sets resize_to on every frame.
 void ResizeFramesTo(std::vector<Frame>* frames, cv::Size size);
+// Sets the image read options of every frame (checked).
+void SetImageReadOptions(std::vector<Frame>* frames, const ImageReadOptions& options);
 
 }  // namespace placedb

@@ -1,11 +1,16 @@
 #include "placedb/dataset/image_folder.h"
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <filesystem>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/core.hpp>
+#include <optional>
 #include <stdexcept>
+#include <vector>
 
+#include "placedb/dataset/frame.h"
 #include "placedb/util/testing.h"
 
 namespace placedb {
@@ -14,6 +19,7 @@ namespace {
 namespace fs = std::filesystem;
 using testing_util::TempDir;
 using testing_util::ThrowsWith;
+using testing_util::RtabmapImage;
 
 const std::string kData = PLACEDB_DATA_DIR;
 
@@ -162,6 +168,178 @@ TEST(ImageFolderTest, ReadImagesDispatches) {
   EXPECT_EQ(FileName(frames[0]), "084.jpg");
   EXPECT_TRUE(
       ThrowsWith<std::invalid_argument>([&] { ReadImages(tmp.Path("none")); }, {tmp.Path("none")}));
+}
+
+
+// ---- bounded image reading (issue 17: decompression bombs) -------------------
+
+std::string Be32(uint32_t v) {
+  return {static_cast<char>(v >> 24), static_cast<char>(v >> 16), static_cast<char>(v >> 8),
+          static_cast<char>(v)};
+}
+std::string Le16(uint32_t v) { return {static_cast<char>(v), static_cast<char>(v >> 8)}; }
+std::string Le32(uint32_t v) { return Le16(v & 0xffff) + Le16(v >> 16); }
+
+// The first bytes of a PNG that declares width x height (no image data: a
+// reader that trusts the header would allocate before finding that out).
+std::string PngHeader(uint32_t width, uint32_t height) {
+  return std::string("\x89PNG\r\n\x1a\n", 8) + Be32(13) + "IHDR" + Be32(width) + Be32(height) +
+         std::string("\x08\x02\x00\x00\x00", 5) + Be32(0);
+}
+
+std::optional<ImageHeader> Header(const std::string& bytes, std::string* error = nullptr) {
+  std::string ignored;
+  return ReadImageHeader(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size(),
+                         error ? error : &ignored);
+}
+
+TEST(ImageReadTest, HeadersOfEveryFormatGiveTheDecodedSize) {
+  cv::Mat image(23, 37, CV_8UC3);
+  cv::randu(image, 0, 255);
+  int formats = 0;
+  for (const std::string ext : {".png", ".jpg", ".bmp", ".ppm", ".pgm", ".pbm", ".pam", ".webp"}) {
+    std::vector<uint8_t> encoded;
+    try {
+      if (!cv::imencode(ext, image, encoded)) continue;
+    } catch (const cv::Exception&) {
+      continue;  // no encoder in this OpenCV
+    }
+    ++formats;
+    std::string error;
+    const auto h = ReadImageHeader(encoded.data(), encoded.size(), &error);
+    ASSERT_TRUE(h.has_value()) << ext << ": " << error;
+    EXPECT_EQ(h->width, 37) << ext;
+    EXPECT_EQ(h->height, 23) << ext;
+    const DecodedImage d = DecodeImage(encoded.data(), encoded.size(), ImageReadOptions(), ext);
+    EXPECT_EQ(d.error, "") << ext;
+    EXPECT_EQ(d.image.size(), cv::Size(37, 23)) << ext;
+    EXPECT_EQ(d.image.type(), CV_8UC3) << ext;
+  }
+  EXPECT_GE(formats, 6);
+  // Headers written by hand: PFM, a BMP stored top-down, an OS/2 BMP, PNM
+  // with comments, WebP's lossless and extended forms.
+  EXPECT_EQ(Header("PF\n37 23\n-1.0\n")->width, 37);
+  auto bmp = Header("BM" + std::string(12, '\0') + Le32(40) + Le32(37) + Le32(static_cast<uint32_t>(-23)));
+  ASSERT_TRUE(bmp);
+  EXPECT_EQ(bmp->height, 23);
+  bmp = Header("BM" + std::string(12, '\0') + Le32(12) + Le16(37) + Le16(23));
+  ASSERT_TRUE(bmp);
+  EXPECT_EQ(bmp->width, 37);
+  const auto pnm = Header("P6\n# a comment\n  50000 # another\n 40000\n255\n");
+  ASSERT_TRUE(pnm);
+  EXPECT_EQ(pnm->width, 50000);
+  EXPECT_EQ(pnm->height, 40000);
+  const uint32_t bits = (37 - 1) | ((23 - 1) << 14);
+  const auto lossless = Header("RIFF" + Le32(100) + "WEBPVP8L" + Le32(50) + "\x2f" + Le32(bits));
+  ASSERT_TRUE(lossless);
+  EXPECT_EQ(lossless->height, 23);
+  const auto extended =
+      Header("RIFF" + Le32(100) + "WEBPVP8X" + Le32(10) + Le32(0) + std::string("\xff\x3f\x00\xff\x3f\x00", 6));
+  ASSERT_TRUE(extended);
+  EXPECT_EQ(extended->width, 16384);
+}
+
+TEST(ImageReadTest, MalformedAndUnknownHeadersAreNotDecoded) {
+  std::string error;
+  for (const auto& [bytes, phrase] : std::vector<std::pair<std::string, std::string>>{
+           {"", "empty"},
+           {std::string("\x89PNG\r\n\x1a\n", 8), "IHDR"},
+           {PngHeader(0, 10), "impossible size 0 x 10"},
+           {PngHeader(0x80000000u, 10), "impossible size"},
+           {std::string("\xff\xd8\xff\xe0\x00\x10JFIF", 10), "cut short"},
+           {std::string("\xff\xd8\xff\xda\x00\x02", 6), "no frame header"},
+           {"BM" + std::string(6, '\0'), "BMP"},
+           {"P6\n12", "PNM"},
+           {"P7\nWIDTH 5\n", "PAM"},
+           {"GIF89a" + std::string(20, '\0'), "not an image format placedb reads"},
+           {std::string("II*\0", 4) + std::string(20, '\0'), "not an image format"},  // TIFF
+           {"RIFF" + Le32(100) + "WEBPVP8 " + std::string(20, '\0'), "WebP"}}) {
+    EXPECT_FALSE(Header(bytes, &error)) << phrase;
+    EXPECT_NE(error.find(phrase), std::string::npos) << error;
+    const DecodedImage d = DecodeImage(reinterpret_cast<const uint8_t*>(bytes.data()),
+                                       bytes.size(), ImageReadOptions(), "x");
+    EXPECT_TRUE(d.image.empty());
+    EXPECT_FALSE(d.too_large);
+    EXPECT_NE(d.error.find(phrase), std::string::npos) << d.error;
+  }
+}
+
+// The probe's bombs: a 30000 x 30000 PNG, a JPEG of 65535 x 65535 behind
+// APP segments, a PNM: refused from the header, nothing decoded.
+TEST(ImageReadTest, ImagesLargerThanTheBoundAreRefusedBeforeDecoding) {
+  const std::string jpeg = std::string("\xff\xd8\xff\xe1", 4) + Be32(0x10).substr(2) +
+                           std::string(14, 'x') + std::string("\xff\xc2\x00\x11\x08", 5) +
+                           Be32(0xffffffffu) + std::string(12, '\0');
+  for (const std::string& bytes :
+       {PngHeader(30000, 30000), jpeg, std::string("P5 8000 5001 255\n"),
+        "BM" + std::string(12, '\0') + Le32(40) + Le32(40000) + Le32(1001)}) {
+    const DecodedImage d = DecodeImage(reinterpret_cast<const uint8_t*>(bytes.data()),
+                                       bytes.size(), ImageReadOptions(), "bomb");
+    EXPECT_TRUE(d.too_large) << d.error;
+    EXPECT_TRUE(d.image.empty());
+    EXPECT_NE(d.error.find("more than the 40000000 pixels allowed"), std::string::npos)
+        << d.error;
+  }
+  // The bound is an option: 40 000 000 pixels exactly pass the check.
+  ImageReadOptions small;
+  small.max_pixels = 37 * 23 - 1;
+  cv::Mat image(23, 37, CV_8UC3, cv::Scalar(1, 2, 3));
+  std::vector<uint8_t> png;
+  cv::imencode(".png", image, png);
+  EXPECT_TRUE(DecodeImage(png.data(), png.size(), small, "small").too_large);
+  small.max_pixels = 37 * 23;
+  EXPECT_EQ(DecodeImage(png.data(), png.size(), small, "small").image.size(), image.size());
+  // Its range.
+  ImageReadOptions bad;
+  bad.max_pixels = 0;
+  EXPECT_NE(bad.Check(), "");
+  bad.max_pixels = (int64_t{1} << 30) + 1;
+  EXPECT_NE(bad.Check(), "");
+  bad.max_pixels = int64_t{1} << 30;
+  EXPECT_EQ(bad.Check(), "");
+  EXPECT_EQ(ImageReadOptions().max_pixels, 40000000);
+}
+
+TEST(ImageReadTest, FramesAndFilesGoThroughTheBound) {
+  TempDir tmp;
+  const std::string bomb = tmp.Write("bomb.png", PngHeader(30000, 30000));
+  Frame frame;
+  frame.id = 7;
+  frame.image_path = bomb;
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { LoadFrameImage(frame); },
+                                                {"frame 7", "30000 x 30000", "more than"}));
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ReadImageFile(bomb, ImageReadOptions()); },
+                                                "more than the 40000000 pixels allowed"));
+  // A simulated camera larger than the bound.
+  frame.image_path = RtabmapImage(1);
+  frame.resize_to = cv::Size(16384, 16384);
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { LoadFrameImage(frame); },
+                                                "simulated camera size 16384x16384"));
+  frame.resize_to = cv::Size(160, 120);
+  EXPECT_EQ(LoadFrameImage(frame).size(), cv::Size(160, 120));
+  // Decoded as cv::imread decodes (JPEG and PNG of the sample data).
+  for (const std::string& path :
+       {RtabmapImage(3), std::string(PLACEDB_DATA_DIR "/oxford_graf/graf1.png")}) {
+    const cv::Mat mine = ReadImageFile(path, ImageReadOptions());
+    const cv::Mat theirs = cv::imread(path, cv::IMREAD_COLOR);
+    ASSERT_EQ(mine.size(), theirs.size()) << path;
+    EXPECT_EQ(cv::norm(mine, theirs, cv::NORM_INF), 0.0) << path;
+  }
+  // Not regular files: an error, never a wait (a FIFO with no writer).
+  ASSERT_EQ(::mkfifo(tmp.Path("fifo").c_str(), 0600), 0);
+  for (const std::string& path : {tmp.Path("fifo"), tmp.Path()}) {
+    const DecodedImage d = TryReadImageFile(path, ImageReadOptions());
+    EXPECT_NE(d.error.find("not a regular file"), std::string::npos) << d.error;
+  }
+  EXPECT_NE(TryReadImageFile(tmp.Path("missing.png"), ImageReadOptions()).error.find(
+                "No such file"),
+            std::string::npos);
+  // A missing or undecodable frame is unreadable (empty), as before.
+  Frame missing;
+  missing.image_path = tmp.Path("missing.png");
+  EXPECT_TRUE(LoadFrameImage(missing).empty());
+  missing.image_path = tmp.Write("text.png", "not an image");
+  EXPECT_TRUE(LoadFrameImage(missing).empty());
 }
 
 }  // namespace

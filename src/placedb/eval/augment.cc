@@ -192,8 +192,10 @@ std::vector<Frame> AugmentedFrames(const std::vector<std::string>& sources, size
   std::vector<std::shared_ptr<const cv::Mat>> images;
   images.reserve(sources.size());
   for (const std::string& path : sources) {
-    cv::Mat image = cv::imread(path, cv::IMREAD_COLOR);
-    if (image.empty()) PLACEDB_THROW_RUNTIME("cannot read augmentation source ", path);
+    const DecodedImage decoded = TryReadImageFile(path, ImageReadOptions());
+    if (decoded.image.empty())
+      PLACEDB_THROW_RUNTIME("cannot read augmentation source ", path, ": ", decoded.error);
+    cv::Mat image = decoded.image;
     PLACEDB_CHECK(image.cols >= 2 && image.rows >= 2, "augmentation source ", path,
                   " is smaller than 2 x 2 pixels");
     images.push_back(std::make_shared<const cv::Mat>(std::move(image)));

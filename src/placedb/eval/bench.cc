@@ -55,7 +55,8 @@ BenchReport RunBench(const PlaceDatabase& db, const std::vector<Frame>& frames,
   PLACEDB_CHECK_OPTIONS(options);
   PLACEDB_CHECK_OPTIONS(query_options);
   if (db.empty()) PLACEDB_THROW_INVALID("the database is empty: nothing to benchmark");
-  const Database& database = db.database();
+  const PlaceDatabase::View view = db.Read();
+  const Database& database = view.database();
   std::vector<FeatureSet> features;
   double extract_ms = 0;
   for (const Frame& f : SampleFrames(frames, options.num_queries, options.seed)) {

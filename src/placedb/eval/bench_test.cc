@@ -52,7 +52,7 @@ TEST(BenchTest, OrbReportIsCompleteAndRankingsAgree) {
   EXPECT_EQ(r.repeat, 1);
   EXPECT_EQ(r.threads, 2);
   EXPECT_EQ(r.num_keyframes, 10u);
-  EXPECT_EQ(r.num_db_descriptors, db.database().num_features());
+  EXPECT_EQ(r.num_db_descriptors, db.Read().database().num_features());
   EXPECT_GT(r.num_db_descriptors, 0u);
   EXPECT_EQ(r.feature_type, "orb");
   EXPECT_FALSE(r.kernel.empty());

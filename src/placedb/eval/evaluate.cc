@@ -58,7 +58,7 @@ EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_fra
   // sign of the wrong ground-truth file.
   int max_id = 0;
   for (const Frame& f : query_frames) max_id = std::max(max_id, f.id);
-  for (const Keyframe& k : db.database().keyframes()) max_id = std::max(max_id, k.id);
+  for (const int32_t id : db.keyframe_ids()) max_id = std::max(max_id, id);
   const std::vector<int> beyond = truth.IdsAbove(max_id);
   if (!beyond.empty()) {
     spdlog::warn(
@@ -87,7 +87,7 @@ EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_fra
     QueryRecord rec;
     rec.query_id = q.id;
     rec.image = q.image_path;
-    rec.has_true_match_in_db = truth.AnyCorrectIn(q, db.database());
+    rec.has_true_match_in_db = truth.AnyCorrectIn(q, db.Read().database());
     const cv::Mat image = LoadFrameImage(q);
     if (image.empty()) {
       spdlog::warn("skipped unreadable query image {} (frame {})", q.image_path, q.id);
@@ -108,8 +108,8 @@ EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_fra
     report.num_deadline_reached += rec.result.deadline_reached;
     const std::vector<RankedKeyframe>& ranked = rec.result.ranked;
     for (size_t r = 0; r < ranked.size(); ++r) {
-      const Keyframe* k = db.FindKeyframe(ranked[r].keyframe_id);
-      if (k != nullptr && truth.IsCorrect(q, *k)) {
+      const std::optional<Keyframe> k = db.FindKeyframe(ranked[r].keyframe_id);
+      if (k && truth.IsCorrect(q, *k)) {
         rec.first_correct_rank = static_cast<int>(r) + 1;
         break;
       }
@@ -147,8 +147,8 @@ EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_fra
   report.verify_ms = ComputeLatencyStats(verify);
   if (report.num_queries > 0) report.mean_coverage = coverage_sum / report.num_queries;
   report.image_bytes = DirectorySize((fs::path(db.directory()) / "images").string());
-  report.feature_bytes = db.database().keyframes_bytes();
-  const nlohmann::json& info = db.manifest();
+  report.feature_bytes = db.Read().database().keyframes_bytes();
+  const nlohmann::json info = db.manifest();
   if (info.contains("bytes") && info["bytes"].is_object() &&
       info["bytes"].value("full_frames_png", nlohmann::json()).is_number_unsigned()) {
     report.full_png_bytes = info["bytes"]["full_frames_png"].get<uint64_t>();

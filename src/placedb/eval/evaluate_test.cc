@@ -320,7 +320,7 @@ TEST(EvaluateTest, RtabmapSplitSurfRecall) {
   const PlaceDatabase db = BuildRtabmap(1, 40, options, tmp.db());
   EXPECT_EQ(db.feature_type(), FeatureType::kSurf);
   EXPECT_EQ(db.extractor_options().type, FeatureType::kSurf);
-  EXPECT_EQ(db.database().descriptor_bytes(), 64 * 4);
+  EXPECT_EQ(db.Read().database().descriptor_bytes(), 64 * 4);
   const EvalReport r = EvaluateRtabmap(db);
   PrintReport("surf uncropped", r);
   // Measured: 43 of 44 (0.977).
@@ -359,7 +359,7 @@ TEST(EvaluateTest, TumPosesJudgeMatches) {
   ASSERT_EQ(frames.size(), 5u);
   BuildDatabase(frames, Defaults(), tmp.db(), "pioneer");
   const PlaceDatabase db = PlaceDatabase::Open(tmp.db());
-  for (const Keyframe& k : db.database().keyframes()) EXPECT_TRUE(k.pose.has_value());
+  for (const int32_t id : db.keyframe_ids()) EXPECT_TRUE(db.FindKeyframe(id)->pose.has_value());
   EvalOptions eval;
   eval.progress = false;
   const GroundTruth truth = GroundTruth::FromPoses(PoseThresholds());
@@ -414,8 +414,9 @@ TEST(EvaluateTest, BaselineRanksLikeOurs) {
   for (int id : {41, 45, 50, 58, 66, 81}) {
     const FeatureSet features = db.Extract(cv::imread(testing_util::RtabmapImage(id)));
     ASSERT_FALSE(features.empty()) << "query " << id;
-    const std::vector<RankedKeyframe> ours = QueryDatabase(db.database(), features, q).ranked;
-    const std::vector<ScoredKeyframe> base = BfMatcherQuery(db.database(), features, q);
+    const PlaceDatabase::View view = db.Read();
+    const std::vector<RankedKeyframe> ours = QueryDatabase(view.database(), features, q).ranked;
+    const std::vector<ScoredKeyframe> base = BfMatcherQuery(view.database(), features, q);
     ASSERT_FALSE(ours.empty()) << "query " << id;
     ASSERT_EQ(ours.size(), base.size()) << "query " << id;
     for (size_t i = 0; i < ours.size(); ++i) {

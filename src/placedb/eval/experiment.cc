@@ -19,6 +19,7 @@
 #include "placedb/util/check.h"
 #include "placedb/util/checksum.h"
 #include "placedb/util/file_io.h"
+#include "placedb/util/json_reader.h"
 #include "placedb/util/options.h"
 
 #ifndef PLACEDB_PYTHON
@@ -207,7 +208,7 @@ void PrepareFolder(const std::string& out, const nlohmann::json& config, bool ov
   fs::create_directories(dir / "settings");
   fs::create_directories(dir / "databases");
   fs::create_directories(dir / "pictures");
-  WriteFileAtomic(config_path.string(), config.dump(2) + "\n");
+  WriteFileAtomic(config_path.string(), DumpJson(config, 2) + "\n");
 }
 
 // The settings of one database, finished or not.
@@ -237,7 +238,7 @@ PlaceDatabase OpenOrBuild(const ExperimentData& data, const ExperimentOptions& o
   const BuildReport report =
       BuildDatabase(data.database, BuildFor(options, s), db_dir.string(), data.database_from);
   *build_json = BuildReportToJson(report, db_dir.string());
-  WriteFileAtomic(build_file.string(), build_json->dump(2) + "\n");
+  WriteFileAtomic(build_file.string(), DumpJson(*build_json, 2) + "\n");
   return PlaceDatabase::Open(db_dir.string(), open);
 }
 
@@ -348,12 +349,12 @@ class PictureMaker {
         p.keyframe = LoadKeyframePicture(db, answer, &p.keyframe_is_original);
         if (p.keyframe.empty()) continue;
         p.detail = &d;
-        const Keyframe* k = db.FindKeyframe(answer);
-        const bool correct = k != nullptr && truth_.IsCorrect(frame, *k);
+        const std::optional<Keyframe> k = db.FindKeyframe(answer);
+        const bool correct = k.has_value() && truth_.IsCorrect(frame, *k);
         int num_lost = 0;
         if (s.crop == CropMode::kNone && chroma != nullptr && p.keyframe_is_original) {
-          const Keyframe* ck = Db(*chroma).FindKeyframe(answer);
-          if (ck != nullptr) {
+          const std::optional<Keyframe> ck = Db(*chroma).FindKeyframe(answer);
+          if (ck) {
             p.region = ck->crop;
             for (const cv::DMatch& m : d.matches) {
               const bool lost = !ck->crop.contains(cv::Point(d.keyframe_points[m.trainIdx]));
@@ -361,7 +362,7 @@ class PictureMaker {
               num_lost += lost;
             }
           }
-        } else if (s.crop == CropMode::kChroma && k != nullptr && p.keyframe_is_original) {
+        } else if (s.crop == CropMode::kChroma && k && p.keyframe_is_original) {
           p.region = k->crop;
         }
         p.caption = fmt::format("query {} -> keyframe {} ({}), {}", id, answer,
@@ -432,7 +433,8 @@ class PictureMaker {
       const Frame& frame = queries_.at(id);
       const int32_t answer = AnswerOf(q);
       int32_t true_id = 0;
-      for (const Keyframe& k : db.database().keyframes()) {
+      const PlaceDatabase::View view = db.Read();
+      for (const Keyframe& k : view.database().keyframes()) {
         if (truth_.IsCorrect(frame, k)) {
           true_id = k.id;
           break;
@@ -540,7 +542,7 @@ ExperimentSummary RunExperiment(const ExperimentData& data, const GroundTruth& t
                           {"num_keyframes", db.size()},
                           {"build", build_json},
                           {"eval", EvalReportToJson(r)}};
-      WriteFileAtomic((out / "settings" / (s.Name() + ".json")).string(), j.dump() + "\n");
+      WriteFileAtomic((out / "settings" / (s.Name() + ".json")).string(), DumpJson(j) + "\n");
       finished[s.Name()] = std::move(j);
       ++index;
       if (options.progress) {
@@ -567,7 +569,7 @@ ExperimentSummary RunExperiment(const ExperimentData& data, const GroundTruth& t
   for (const ExperimentSetting& s : grid) results["settings"].push_back(finished.at(s.Name()));
   results["pictures"] = pictures;
   summary.results = (out / "results.json").string();
-  WriteFileAtomic(summary.results, results.dump() + "\n");
+  WriteFileAtomic(summary.results, DumpJson(results) + "\n");
   return summary;
 }
 

@@ -6,6 +6,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "placedb/dataset/frame.h"
 #include "placedb/image/resize.h"
 #include "placedb/util/check.h"
 
@@ -161,11 +162,13 @@ cv::Mat DrawMatchPicture(const MatchPicture& p) {
 }
 
 cv::Mat LoadKeyframePicture(const PlaceDatabase& db, int32_t id, bool* keyframe_is_original) {
-  const Keyframe* k = db.FindKeyframe(id);
-  if (k == nullptr) PLACEDB_THROW_INVALID("no keyframe ", id, " in the database ", db.directory());
+  const std::optional<Keyframe> k = db.FindKeyframe(id);
+  if (!k) PLACEDB_THROW_INVALID("no keyframe ", id, " in the database ", db.directory());
   *keyframe_is_original = true;
   if (!k->source.empty()) {
-    cv::Mat original = cv::imread(k->source, cv::IMREAD_COLOR);
+    // The source path comes from the database file: read with the default
+    // pixel bound, anything unreadable falls back to the stored image.
+    cv::Mat original = TryReadImageFile(k->source, ImageReadOptions()).image;
     if (!original.empty() &&
         (k->original_size.area() == 0 || original.size() == k->original_size)) {
       return original;
@@ -173,7 +176,7 @@ cv::Mat LoadKeyframePicture(const PlaceDatabase& db, int32_t id, bool* keyframe_
   }
   *keyframe_is_original = false;
   const std::string stored = db.StoredImagePath(*k);
-  return stored.empty() ? cv::Mat() : cv::imread(stored, cv::IMREAD_COLOR);
+  return stored.empty() ? cv::Mat() : TryReadImageFile(stored, ImageReadOptions()).image;
 }
 
 cv::Mat DrawQueryMatch(const PlaceDatabase& db, const cv::Mat& query_image,

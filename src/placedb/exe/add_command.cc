@@ -33,7 +33,7 @@ class AddCommand : public Command {
     // database as it was.
     std::vector<const Frame*> todo;
     for (const Frame& f : frames) {
-      if (db.FindKeyframe(f.id) == nullptr) {
+      if (!db.FindKeyframe(f.id)) {
         todo.push_back(&f);
       } else if (!skip_existing_) {
         PLACEDB_THROW_INVALID("frame ", f.id, " (", f.image_path, ") is already a keyframe of ",

@@ -13,6 +13,7 @@
 #endif
 #include "placedb/util/check.h"
 #include "placedb/util/file_io.h"
+#include "placedb/util/json_reader.h"
 
 namespace placedb {
 namespace cli {
@@ -36,7 +37,9 @@ void SourceArgs::Add(CLI::App* cmd, const std::string& what) {
   cmd->add_option("--last", last, "last image id to use (0: to the end)")->capture_default_str();
   cmd->add_option("--frame-size", frame_size,
                   "resize every frame to WxH as it is read, to see how a smaller camera "
-                  "does (e.g. 160x120)");
+                  "does (e.g. 160x120); each side in [16, 16384], W x H at most "
+                  "--max-image-pixels");
+  AddImageReadOptions(cmd, image_read);
   cmd->add_option("--max-time-diff", tum_options.max_time_difference,
                   "TUM: largest |dt| between a frame and its ground-truth pose, seconds [0, 3600]")
       ->capture_default_str();
@@ -74,7 +77,17 @@ std::vector<Frame> SourceArgs::Read() const {
   } else {
     PLACEDB_THROW_INVALID("give --images DIR, --tum DIR or --bag FILE --topic T");
   }
-  if (!frame_size.empty()) ResizeFramesTo(&frames, ParseSize(frame_size, "--frame-size"));
+  PLACEDB_CHECK_OPTIONS(image_read);
+  SetImageReadOptions(&frames, image_read);
+  if (!frame_size.empty()) {
+    const cv::Size size = ParseSize(frame_size, "--frame-size");
+    if (static_cast<int64_t>(size.width) * size.height > image_read.max_pixels) {
+      PLACEDB_THROW_INVALID("--frame-size ", frame_size, " is ",
+                            static_cast<int64_t>(size.width) * size.height,
+                            " pixels, more than --max-image-pixels ", image_read.max_pixels);
+    }
+    ResizeFramesTo(&frames, size);
+  }
   return frames;
 }
 
@@ -130,6 +143,13 @@ void AddQuerySelectionOptions(CLI::App* cmd, EvalOptions& options) {
                       ->capture_default_str();
   cmd->add_flag("--all", options.all, "use every query with ground truth")->excludes(queries);
   cmd->add_option("--seed", options.seed, "seed of the random query selection")
+      ->capture_default_str();
+}
+
+void AddImageReadOptions(CLI::App* cmd, ImageReadOptions& options) {
+  cmd->add_option("--max-image-pixels", options.max_pixels,
+                  "largest image decoded, width x height pixels as its header declares them "
+                  "(checked before decoding; also bounds --frame-size) [1, 2^30]")
       ->capture_default_str();
 }
 
@@ -348,10 +368,10 @@ QueryOptions QueryArgs::Get() const {
 void WriteJson(const std::string& path, const nlohmann::json& j) {
   if (path.empty()) return;
   if (path == "-") {
-    std::cout << j.dump(2) << "\n";
+    std::cout << DumpJson(j, 2) << "\n";
     return;
   }
-  WriteFileAtomic(path, j.dump(2) + "\n");
+  WriteFileAtomic(path, DumpJson(j, 2) + "\n");
   spdlog::info("wrote {}", path);
 }
 

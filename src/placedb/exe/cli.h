@@ -53,6 +53,7 @@ struct SourceArgs {
   int last = 0;
   std::string frame_size;  // "WxH" or ""
   TumOptions tum_options;
+  ImageReadOptions image_read;  // --max-image-pixels
 
   void Add(CLI::App* cmd, const std::string& what);
   std::vector<Frame> Read() const;
@@ -74,6 +75,9 @@ struct TruthArgs {
 
 // --queries N / --all / --seed S: which validation queries.
 void AddQuerySelectionOptions(CLI::App* cmd, EvalOptions& options);
+
+// --max-image-pixels N: the largest image decoded (ImageReadOptions).
+void AddImageReadOptions(CLI::App* cmd, ImageReadOptions& options);
 
 // --threads T for every command: 0 = one thread per core.
 void AddThreadsOption(CLI::App* cmd, int& threads, const std::string& what);

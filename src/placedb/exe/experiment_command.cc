@@ -118,6 +118,7 @@ class ExperimentCommand : public Command {
       db_source.tum = db_source_.tum;
       db_source.frame_size = source_.frame_size;
       db_source.tum_options = source_.tum_options;
+      db_source.image_read = source_.image_read;
     }
     db_source.first = db_source_.first;
     db_source.last = db_source_.last;

@@ -7,6 +7,7 @@
 #include "placedb/exe/cli.h"
 #include "placedb/index/place_database.h"
 #include "placedb/util/file_io.h"
+#include "placedb/util/json_reader.h"
 
 namespace placedb {
 namespace cli {
@@ -24,18 +25,19 @@ class InfoCommand : public Command {
 
   int Run() override {
     const PlaceDatabase place = db_.Open();
-    const Database& db = place.database();
-    const nlohmann::json& m = place.manifest();
+    const PlaceDatabase::View view = place.Read();
+    const Database& db = view.database();
+    const nlohmann::json& m = db.info();
     if (json_) {
-      std::cout << m.dump(2) << "\n";
+      std::cout << DumpJson(m, 2) << "\n";
       return 0;
     }
     const BuildOptions& b = place.build_options();
-    fmt::print("database        {}\n", db_.dir);
+    fmt::print("database        {}\n", EscapeForTerminal(db_.dir));
     fmt::print("format version  {}\n", m.value("format_version", 0));
-    fmt::print("created         {} by placedb {}\n", m.value("created", "?"),
-               m.value("placedb_version", "?"));
-    fmt::print("source          {}\n", m.value("source", "?"));
+    fmt::print("created         {} by placedb {}\n", EscapeForTerminal(m.value("created", "?")),
+               EscapeForTerminal(m.value("placedb_version", "?")));
+    fmt::print("source          {}\n", EscapeForTerminal(m.value("source", "?")));
     fmt::print("features        {} ({} bytes per descriptor)\n", FeatureTypeName(db.feature_type()),
                db.descriptor_bytes());
     fmt::print("crop            {}\n", CropModeName(b.crop));

@@ -1,17 +1,26 @@
 // Runs the placedb binary as a user would: every sub-command, the bad-input
 // cases, and the exit codes and one-line errors.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <iterator>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <string>
 
 #include "placedb/index/builder.h"
+#include "placedb/index/database.h"
+#include "placedb/index/keyframe_file.h"
 #include "placedb/index/query.h"
+#include "placedb/util/checksum.h"
 #include "placedb/util/testing.h"
 
 namespace {
@@ -259,6 +268,58 @@ TEST_F(CliTest, ArgumentErrorsAreOneLineAndExitOne) {
 
 // A query may open one partition or a list of keyframes only (a worker's
 // share of the database).
+// Output paths that are not regular files are written as streams, never
+// replaced: /dev/stdout and /dev/fd/1 (a pipe here), a symlink, a FIFO. As
+// root, `--json /dev/stdout` once replaced the system's /dev/stdout symlink
+// with a regular file.
+TEST_F(CliTest, SpecialOutputPathsAreStreamed) {
+  const std::string db = Path("db");
+  ASSERT_EQ(Placedb("build --images " + kImages + " --last 3 --out " + db + " --quiet").code, 0);
+  const std::string query = "query --db " + db + " --image " + kImages + "/002.jpg";
+  const bool stdout_was_link = fs::is_symlink("/dev/stdout");
+  for (const std::string& out : {"/dev/stdout", "/dev/fd/1"}) {
+    const CommandResult r = Placedb(query + " --json " + out);
+    EXPECT_EQ(r.code, 0) << r.output;
+    EXPECT_TRUE(Contains(r.output, "\"ranked\"")) << out << ": " << r.output;
+  }
+  EXPECT_EQ(fs::is_symlink("/dev/stdout"), stdout_was_link);
+  EXPECT_FALSE(fs::is_regular_file(fs::symlink_status("/dev/stdout")));
+  // A symlink: its target is written, the link stays.
+  const std::string target = Path("target.json"), link = Path("link.json");
+  { std::ofstream(target) << "old"; }
+  fs::create_symlink(target, link);
+  EXPECT_EQ(Placedb(query + " --json " + link).code, 0);
+  EXPECT_TRUE(fs::is_symlink(link));
+  EXPECT_NO_THROW(nlohmann::json::parse(std::ifstream(target)));
+  // A FIFO, read by another process.
+  const std::string fifo = Path("fifo");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  FILE* reader = popen(("cat " + fifo + " > " + Path("from_fifo.json")).c_str(), "w");
+  ASSERT_NE(reader, nullptr);
+  EXPECT_EQ(Placedb(query + " --json " + fifo).code, 0);
+  pclose(reader);
+  EXPECT_TRUE(fs::is_fifo(fifo));
+  EXPECT_NO_THROW(nlohmann::json::parse(std::ifstream(Path("from_fifo.json"))));
+  // A directory: one line, exit 1.
+  const CommandResult dir = Placedb(query + " --json " + Path(""));
+  EXPECT_EQ(dir.code, 1);
+  EXPECT_TRUE(Contains(dir.output, "is a directory")) << dir.output;
+}
+
+// The full 64-bit vocabulary seed builds, and the database opens: the
+// manifest reads back what it wrote (a seed above 2^63 once built a
+// database that never opened).
+TEST_F(CliTest, VocabularySeedAboveTwoToTheSixtyThreeRoundTrips) {
+  const std::string db = Path("db");
+  const CommandResult build =
+      Placedb("build --images " + kImages + " --last 6 --index bow --vocabulary-depth 2 " +
+              "--vocabulary-seed 9223372036854775809 --out " + db + " --quiet");
+  ASSERT_EQ(build.code, 0) << build.output;
+  const CommandResult info = Placedb("info --db " + db + " --json");
+  EXPECT_EQ(info.code, 0) << info.output;
+  EXPECT_TRUE(Contains(info.output, "9223372036854775809")) << info.output;
+}
+
 TEST_F(CliTest, PartitionsAndKeyframeLists) {
   const std::string db = Path("db");
   ASSERT_EQ(Placedb("build --images " + kImages + " --last 9 --out " + db + " --quiet").code, 0);
@@ -504,3 +565,225 @@ TEST_F(CliTest, QueryDrawsItsMatchesAndExperimentChecksItsGrid) {
   EXPECT_EQ(both.code, 1);
   EXPECT_TRUE(Contains(both.output, "exclude each other")) << both.output;
 }
+
+namespace {
+
+// ---- hostile input (issue 17) -------------------------------------------------
+
+// A PNG of width x height 1-bit gray pixels, all black, written without
+// zlib: one fixed-Huffman deflate block of runs (length 258, distance 1).
+// 30000 x 30000 (900 megapixels, 2.7 GB as BGR) is about 710 KB.
+std::string BlackPng(uint32_t width, uint32_t height) {
+  auto be32 = [](uint32_t v) {
+    return std::string{static_cast<char>(v >> 24), static_cast<char>(v >> 16),
+                       static_cast<char>(v >> 8), static_cast<char>(v)};
+  };
+  auto crc32 = [](const std::string& bytes) {
+    uint32_t c = 0xffffffffu;
+    for (const char ch : bytes) {
+      c ^= static_cast<uint8_t>(ch);
+      for (int k = 0; k < 8; ++k) c = (c >> 1) ^ (0xedb88320u & (0u - (c & 1u)));
+    }
+    return c ^ 0xffffffffu;
+  };
+  auto chunk = [&](const std::string& type, const std::string& data) {
+    return be32(static_cast<uint32_t>(data.size())) + type + data + be32(crc32(type + data));
+  };
+  // The deflate stream, bits least significant first; Huffman codes most
+  // significant bit first.
+  std::string z = "\x78\x01";
+  uint64_t bit_buffer = 0;
+  int bits = 0;
+  auto put = [&](uint32_t value, int n) {  // n bits of value, LSB first
+    bit_buffer |= static_cast<uint64_t>(value) << bits;
+    bits += n;
+    while (bits >= 8) {
+      z += static_cast<char>(bit_buffer & 0xff);
+      bit_buffer >>= 8;
+      bits -= 8;
+    }
+  };
+  auto put_code = [&](uint32_t code, int n) {
+    for (int i = n - 1; i >= 0; --i) put((code >> i) & 1u, 1);
+  };
+  const uint64_t total = static_cast<uint64_t>(height) * (1 + (width + 7) / 8);
+  put(1, 1);                      // BFINAL
+  put(1, 2);                      // fixed Huffman
+  put_code(0x30, 8);              // literal 0
+  uint64_t left = total - 1;
+  for (; left >= 258; left -= 258) {
+    put_code(0xC5, 8);            // length 258 (code 285)
+    put_code(0, 5);               // distance 1 (code 0)
+  }
+  for (; left > 0; --left) put_code(0x30, 8);
+  put_code(0, 7);                 // end of block
+  if (bits > 0) put(0, 8 - bits);
+  const uint32_t adler = (static_cast<uint32_t>(total % 65521) << 16) | 1u;
+  z += be32(adler);
+  const std::string ihdr = be32(width) + be32(height) + std::string("\x01\x00\x00\x00\x00", 5);
+  return std::string("\x89PNG\r\n\x1a\n", 8) + chunk("IHDR", ihdr) + chunk("IDAT", z) +
+         chunk("IEND", "");
+}
+
+void WriteFile(const std::string& path, const std::string& bytes) {
+  std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes;
+}
+
+std::string ReadFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+size_t Lines(const std::string& text) { return std::count(text.begin(), text.end(), '\n'); }
+
+TEST_F(CliTest, DecompressionBombsAreRefusedFromTheirHeader) {
+  // The generator makes real PNGs: a small one decodes.
+  const std::string small = Path("small.png");
+  WriteFile(small, BlackPng(300, 200));
+  const cv::Mat decoded = cv::imread(small, cv::IMREAD_GRAYSCALE);
+  ASSERT_EQ(decoded.size(), cv::Size(300, 200));
+  EXPECT_EQ(cv::countNonZero(decoded), 0);
+
+  const std::string db = Path("db");
+  ASSERT_EQ(Placedb("build --images " + kImages + " --last 4 --out " + db + " --quiet").code, 0);
+  const std::string bomb = Path("bomb.png");
+  WriteFile(bomb, BlackPng(30000, 30000));
+  ASSERT_LT(ReadFile(bomb).size(), 1u << 20);
+  const CommandResult query = Placedb("query --db " + db + " --image " + bomb);
+  EXPECT_EQ(query.code, 1) << query.output;
+  EXPECT_TRUE(Contains(query.output, "query image " + bomb +
+                                         " is 30000 x 30000 pixels (900.0 megapixels), more than "
+                                         "the 40000000 pixels allowed"))
+      << query.output;
+  EXPECT_EQ(Lines(query.output), 1u) << query.output;
+  // The same bomb among the frames of a build or an add.
+  const std::string frames = Path("frames");
+  fs::create_directories(frames);
+  fs::copy_file(kImages + "/001.jpg", frames + "/001.jpg");
+  fs::copy_file(bomb, frames + "/002.png");
+  const CommandResult build = Placedb("build --images " + frames + " --out " + Path("db2") + " --quiet");
+  EXPECT_EQ(build.code, 1) << build.output;
+  EXPECT_TRUE(Contains(build.output, "30000 x 30000 pixels")) << build.output;
+  EXPECT_FALSE(fs::exists(Path("db2/manifest.json")));
+  // The bound is an option, with a range; a simulated camera is held to it.
+  const CommandResult zero = Placedb("query --db " + db + " --image " + small + " --max-image-pixels 0");
+  EXPECT_EQ(zero.code, 1);
+  EXPECT_TRUE(Contains(zero.output, "max_pixels must be in [1, 1073741824]")) << zero.output;
+  const CommandResult lowered =
+      Placedb("query --db " + db + " --image " + kImages + "/003.jpg --max-image-pixels 1000");
+  EXPECT_EQ(lowered.code, 1);
+  EXPECT_TRUE(Contains(lowered.output, "more than the 1000 pixels allowed")) << lowered.output;
+  const CommandResult camera = Placedb("build --images " + kImages + " --last 2 --out " +
+                                       Path("db3") + " --frame-size 16384x16384 --quiet");
+  EXPECT_EQ(camera.code, 1);
+  EXPECT_TRUE(Contains(camera.output, "--frame-size 16384x16384 is 268435456 pixels, more than "
+                                      "--max-image-pixels 40000000"))
+      << camera.output;
+  EXPECT_EQ(Lines(camera.output), 1u) << camera.output;
+}
+
+// A checksum-valid database whose keyframe record names a stored image
+// outside the database: no command opens it, and nothing outside is touched.
+TEST_F(CliTest, CraftedStoredImageNamesNeverLeaveTheDatabase) {
+  const std::string db = Path("db");
+  ASSERT_EQ(Placedb("build --images " + kImages + " --last 3 --out " + db + " --quiet").code, 0);
+  const std::string victim = Path("victim.txt");
+  WriteFile(victim, "not yours\n");
+  // An absolute name short enough for the record's strings.
+  const std::string absolute = "/tmp/placedb_victim_" + std::to_string(::getpid());
+  WriteFile(absolute, "not yours\n");
+  for (const std::string& name : {std::string("../victim.txt"), absolute,
+                                  std::string("images/../../victim.txt")}) {
+    nlohmann::json manifest = nlohmann::json::parse(ReadFile(db + "/manifest.json"));
+    const std::string old_name = manifest["files"]["keyframes"];
+    std::string bytes = ReadFile(db + "/" + old_name);
+    // Keyframe 0's record and its strings (keyframe_file.h's layout).
+    auto get64 = [&](size_t at) {
+      uint64_t v;
+      std::memcpy(&v, &bytes[at], 8);
+      return v;
+    };
+    auto get32 = [&](size_t at) {
+      uint32_t v;
+      std::memcpy(&v, &bytes[at], 4);
+      return v;
+    };
+    uint64_t records = 0, strings = 0;
+    for (uint32_t s = 0; s < 4; ++s) {
+      const uint32_t kind = get32(64 + 32 * s);
+      if (kind == placedb::keyframe_file::kKeyframes) records = get64(64 + 32 * s + 8);
+      if (kind == placedb::keyframe_file::kStrings) strings = get64(64 + 32 * s + 8);
+    }
+    const uint32_t source_len = get32(records + 132);
+    const uint32_t image_len = get32(records + 144);
+    const uint64_t at = strings + get64(records + 136);
+    ASSERT_GE(source_len + image_len, name.size());
+    const uint32_t new_source = source_len + image_len - static_cast<uint32_t>(name.size());
+    std::memcpy(&bytes[at + new_source], name.data(), name.size());
+    std::memcpy(&bytes[records + 132], &new_source, 4);
+    const uint32_t new_image = static_cast<uint32_t>(name.size());
+    std::memcpy(&bytes[records + 144], &new_image, 4);
+    const uint64_t checksum = placedb::keyframe_file::Reseal(&bytes, true);
+    const std::string new_name = placedb::Database::KeyframesFileName(checksum);
+    fs::remove(db + "/" + old_name);
+    WriteFile(db + "/" + new_name, bytes);
+    manifest["files"]["keyframes"] = new_name;
+    manifest["files"]["keyframes_bytes"] = bytes.size();
+    manifest["files"]["keyframes_checksum"] = placedb::ChecksumHex(checksum);
+    WriteFile(db + "/manifest.json", manifest.dump(2));
+
+    for (const std::string& command :
+         {"remove --db " + db + " --ids 1", "query --db " + db + " --image " + kImages + "/001.jpg",
+          "info --db " + db, "eval --db " + db + " --images " + kImages + " --truth " + kTruth,
+          "add --db " + db + " --images " + kImages + " --first 5 --last 5"}) {
+      const CommandResult run = Placedb(command);
+      EXPECT_EQ(run.code, 1) << command << "\n" << run.output;
+      EXPECT_TRUE(Contains(run.output, "stored image name '" + name + "' is not images/")) << run.output;
+      EXPECT_EQ(Lines(run.output), 1u) << run.output;
+      EXPECT_EQ(ReadFile(victim), "not yours\n") << command;
+      EXPECT_EQ(ReadFile(absolute), "not yours\n") << command;
+    }
+  }
+  fs::remove(absolute);
+}
+
+// Paths that are not UTF-8, and control characters in them: JSON output is
+// valid (U+FFFD for the bytes that are not UTF-8), terminal text is escaped.
+TEST_F(CliTest, PathsOfAnyBytesGiveValidJsonAndEscapedText) {
+  const std::string folder = Path("caf\xe9");
+  fs::create_directories(folder);
+  for (int i = 1; i <= 6; ++i) {
+    char name[16];
+    std::snprintf(name, sizeof(name), "%03d.jpg", i);
+    const std::string target = folder + "/" + (i == 3 ? "esc\x1b[31m_" : "img\xe9_") + name;
+    fs::copy_file(kImages + "/" + name, target);
+  }
+  const std::string db = Path("db");
+  const CommandResult build =
+      Placedb("build --images '" + folder + "' --out " + db + " --quiet --json " + Path("b.json"));
+  ASSERT_EQ(build.code, 0) << build.output;
+  const std::string query_image = folder + "/esc\x1b[31m_003.jpg";
+  const CommandResult query =
+      Placedb("query --db " + db + " --image '" + query_image + "' --json " + Path("q.json"));
+  ASSERT_EQ(query.code, 0) << query.output;
+  EXPECT_TRUE(Contains(query.output, "caf\\xe9/esc\\x1b[31m_003.jpg")) << query.output;
+  EXPECT_FALSE(Contains(query.output, "\x1b")) << query.output;
+  EXPECT_FALSE(Contains(query.output, "\xe9")) << query.output;
+  const nlohmann::json j = nlohmann::json::parse(ReadFile(Path("q.json")));
+  EXPECT_EQ(j["query"], Path("caf\xef\xbf\xbd") + "/esc\x1b[31m_003.jpg");
+  ASSERT_FALSE(j["ranked"].empty());
+  EXPECT_EQ(j["ranked"][0]["source"], j["query"]);
+  // To stdout too, and the manifest (whose source names the folder).
+  const CommandResult to_stdout =
+      Placedb("query --db " + db + " --image '" + folder + "/img\xe9_001.jpg' --json -");
+  ASSERT_EQ(to_stdout.code, 0) << to_stdout.output;
+  const size_t brace = to_stdout.output.find("\n{");
+  ASSERT_NE(brace, std::string::npos) << to_stdout.output;
+  EXPECT_NO_THROW(nlohmann::json::parse(to_stdout.output.substr(brace + 1)));
+  const CommandResult info = Placedb("info --db " + db + " --json");
+  ASSERT_EQ(info.code, 0) << info.output;
+  EXPECT_EQ(nlohmann::json::parse(info.output)["source"], "images:" + Path("caf\xef\xbf\xbd"));
+  EXPECT_NO_THROW(nlohmann::json::parse(ReadFile(Path("b.json"))));
+}
+
+}  // namespace

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "placedb/exe/cli.h"
+#include "placedb/util/file_io.h"
 #include "placedb/util/version.h"
 
 int main(int argc, char** argv) {
@@ -45,7 +46,8 @@ int main(int argc, char** argv) {
   } catch (const CLI::CallForVersion& e) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
-    std::fprintf(stderr, "placedb: error: %s (see placedb --help)\n", e.what());
+    std::fprintf(stderr, "placedb: error: %s (see placedb --help)\n",
+                 placedb::EscapeForTerminal(e.what()).c_str());
     return 1;
   }
   try {
@@ -55,7 +57,8 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "placedb: error: no sub-command given (see placedb --help)\n");
     return 1;
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "placedb: error: %s\n", e.what());
+    // Messages name paths and values from files: escaped, one line.
+    std::fprintf(stderr, "placedb: error: %s\n", placedb::EscapeForTerminal(e.what()).c_str());
     return 1;
   }
 }

@@ -8,6 +8,7 @@
 #include "placedb/exe/cli.h"
 #include "placedb/index/place_database.h"
 #include "placedb/util/check.h"
+#include "placedb/util/file_io.h"
 
 namespace placedb {
 namespace cli {
@@ -20,6 +21,7 @@ class QueryCommand : public Command {
     auto* cmd = app.add_subcommand("query", "find the keyframe that best matches an image");
     db_.Add(cmd, "threads matching and verifying");
     cmd->add_option("--image", image_, "query image (a full, uncropped frame)")->required();
+    AddImageReadOptions(cmd, image_read_);
     query_.Add(cmd);
     cmd->add_option("--json", json_, "write the result as JSON to this file ('-': stdout)");
     cmd->add_option("--draw", draw_,
@@ -39,11 +41,15 @@ class QueryCommand : public Command {
       fmt::print("the database at {} is empty: no keyframes to match against\n", db_.dir);
       return 2;
     }
-    const cv::Mat image = cv::imread(image_, cv::IMREAD_COLOR);
-    if (image.empty()) PLACEDB_THROW_INVALID("cannot read query image ", image_);
+    PLACEDB_CHECK_OPTIONS(image_read_);
+    const DecodedImage decoded = TryReadImageFile(image_, image_read_);
+    if (decoded.too_large) PLACEDB_THROW_INVALID("query ", decoded.error);
+    if (decoded.image.empty()) PLACEDB_THROW_INVALID("cannot read query ", decoded.error.substr(12));
+    const cv::Mat& image = decoded.image;
     const QueryResult r = db.Query(image, options);
     if (const RankedKeyframe* best = r.best()) {
-      fmt::print("best keyframe {} ({})  {}\n", best->keyframe_id, Describe(*best), best->source);
+      fmt::print("best keyframe {} ({})  {}\n", best->keyframe_id, Describe(*best),
+                 EscapeForTerminal(best->source));
       fmt::print("pose          {}\n", FormatPose(best->pose));
     } else if (r.ranked.empty()) {
       fmt::print("no match: no keyframe has {} or more matches ({} query features)\n",
@@ -89,7 +95,11 @@ class QueryCommand : public Command {
                     k.keyframe_id, Describe(k), r.matched ? "" : ", below --min-score");
     const cv::Mat picture =
         DrawQueryMatch(db, image, db.Extract(image), k.keyframe_id, options, caption);
-    if (!cv::imwrite(draw_, picture)) PLACEDB_THROW_RUNTIME("cannot write --draw ", draw_);
+    // Encoded here and written as every output is: a regular file replaced
+    // whole, a symlink, device or FIFO streamed, never replaced.
+    std::vector<uint8_t> png;
+    if (!cv::imencode(".png", picture, png)) PLACEDB_THROW_RUNTIME("cannot encode --draw ", draw_);
+    WriteFileAtomic(draw_, std::string(reinterpret_cast<const char*>(png.data()), png.size()));
     fmt::print("draw          {}\n", draw_);
   }
 
@@ -100,6 +110,7 @@ class QueryCommand : public Command {
 
   DatabaseArgs db_;
   QueryArgs query_;
+  ImageReadOptions image_read_;
   std::string image_, json_, draw_;
 };
 

@@ -25,7 +25,7 @@ class RemoveCommand : public Command {
   int Run() override {
     PlaceDatabase db = db_.Open();
     for (const int32_t id : ids_) {
-      if (db.FindKeyframe(id) == nullptr && !ignore_missing_) {
+      if (!db.FindKeyframe(id) && !ignore_missing_) {
         PLACEDB_THROW_INVALID("keyframe ", id, " is not in ", db_.dir,
                               " (--ignore-missing to skip such ids)");
       }

@@ -5,6 +5,7 @@
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "placedb/dataset/frame.h"
 #include "placedb/image/chromaticity.h"
 #include "placedb/util/check.h"
 #include "placedb/util/options.h"
@@ -94,7 +95,13 @@ class UpscalingExtractor : public FeatureExtractor {
   FeatureSet Extract(const cv::Mat& image) const override {
     const int shorter = std::min(image.cols, image.rows);
     if (image.empty() || shorter >= upscale_below_) return inner_->Extract(image);
-    const double f = std::min(static_cast<double>(upscale_below_) / shorter, kMaxUpscale);
+    double f = std::min(static_cast<double>(upscale_below_) / shorter, kMaxUpscale);
+    // A long thin image is not blown up past the default image bound
+    // (kDefaultMaxImagePixels): 60 x 666 666 pixels would become 640 megapixels.
+    const double pixels = static_cast<double>(image.cols) * image.rows;
+    if (pixels * f * f > static_cast<double>(kDefaultMaxImagePixels))
+      f = std::sqrt(static_cast<double>(kDefaultMaxImagePixels) / pixels);
+    if (f <= 1.0) return inner_->Extract(image);
     cv::Mat big;
     cv::resize(image, big,
                cv::Size(static_cast<int>(std::lround(image.cols * f)),

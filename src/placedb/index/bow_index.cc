@@ -448,7 +448,8 @@ Span<uint32_t> BowIndex::DirectNodes(uint32_t index) const {
 
 std::vector<BowIndex::Scored> BowIndex::Query(const BowVector& query, size_t max_results,
                                               const std::vector<uint32_t>* among,
-                                              const Deadline& deadline, bool* stopped) const {
+                                              const Deadline& deadline, bool* stopped,
+                                              const uint8_t* excluded) const {
   const size_t n = query.words.size();
   PLACEDB_CHECK(query.weights.size() == n, "a bag of words needs one weight per word");
   const uint32_t num_words = vocabulary_->num_words();
@@ -471,15 +472,26 @@ std::vector<BowIndex::Scored> BowIndex::Query(const BowVector& query, size_t max
     scratch.touched.resize(num_keyframes_ + 1);
   }
   const ScratchReset reset(&scratch, among);
+  // A keyframe's terms are multiplied by mask[k] ^ invert: the among mask
+  // (with the excluded ones cleared), or the excluded mask inverted.
+  const uint8_t* mask = nullptr;
+  uint8_t invert = 0;
   if (among != nullptr) {
-    for (const uint32_t k : *among) scratch.allowed[k] = 1;
+    if (excluded != nullptr) {
+      for (const uint32_t k : *among) scratch.allowed[k] = static_cast<uint8_t>(!excluded[k]);
+    } else {
+      for (const uint32_t k : *among) scratch.allowed[k] = 1;
+    }
+    mask = scratch.allowed.data();
+  } else if (excluded != nullptr) {
+    mask = excluded;
+    invert = 1;
   }
   double* scores = scratch.scores.data();
-  const uint8_t* allowed = scratch.allowed.data();
   uint32_t* touched = scratch.touched.data();
   size_t& num_touched = scratch.num_touched;
   // Every term is min(q, p) > 0 (stored weights are > 0; a keyframe outside
-  // `among` gets 0), so a score of 0 means "not touched yet", and each
+  // `among` or excluded gets 0), so a score of 0 means "not touched yet", and each
   // keyframe's terms are added in word order, as BowScore adds them (the
   // min of two floats is exact, so it equals BowScore's min in double). The
   // inner loop has no branch: which weight is smaller, and whether a
@@ -518,7 +530,7 @@ std::vector<BowIndex::Scored> BowIndex::Query(const BowVector& query, size_t max
       for (; p != end; ++p) {
         const uint32_t k = p->keyframe;
         float term = std::min(q, p->weight);
-        if constexpr (decltype(with_among)::value) term *= static_cast<float>(allowed[k]);
+        if constexpr (decltype(with_among)::value) term *= static_cast<float>(mask[k] ^ invert);
         const double before = scores[k];
         touched[num_touched] = k;
         num_touched += static_cast<size_t>((before == 0.0) & (term > 0.0f));
@@ -526,7 +538,7 @@ std::vector<BowIndex::Scored> BowIndex::Query(const BowVector& query, size_t max
       }
     }
   };
-  if (among != nullptr) {
+  if (mask != nullptr) {
     accumulate(std::true_type());
   } else {
     accumulate(std::false_type());

@@ -163,9 +163,13 @@ class BowIndex {
   // the deadline; else the scoring stops and *stopped (when given) is set:
   // the scores are then those of the query's words scored so far, a partial
   // ranking, so that a query's time budget also bounds this stage.
+  // `excluded` (nullptr: none; else one byte per keyframe, 1 = left out: the
+  // keyframes removed online) is tested per posting, so removals cost a
+  // query nothing else.
   std::vector<Scored> Query(const BowVector& query, size_t max_results,
                             const std::vector<uint32_t>* among = nullptr,
-                            const Deadline& deadline = Deadline(), bool* stopped = nullptr) const;
+                            const Deadline& deadline = Deadline(), bool* stopped = nullptr,
+                            const uint8_t* excluded = nullptr) const;
 
  private:
   // A posting, the layout of the file's 8-byte record.

@@ -229,7 +229,7 @@ BuildOptions BuildOptionsFromManifest(const nlohmann::json& manifest, const std:
       v.Read("depth", &vo.depth);
       v.Read("iterations", &vo.iterations);
       v.Read("max_training_descriptors", &vo.max_training_descriptors);
-      vo.seed = static_cast<uint64_t>(v.Integer("seed", 0, INT64_MAX));
+      vo.seed = v.Unsigned("seed");
     }
     if (s.Has("vocabulary_file")) o.vocabulary_file = s.String("vocabulary_file");
     s.Child("bow").Read("direct_level", &o.bow.direct_level);

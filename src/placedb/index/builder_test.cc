@@ -197,6 +197,105 @@ TEST(BuilderTest, ExtractorOptionsRoundTripThroughManifest) {
   EXPECT_EQ(BuildOptionsFromManifest(manifest, "m").features.upscale_below, 0);
 }
 
+// Every setting the manifest stores reads back as it was written, at both ends
+// of its range (the vocabulary seed over all 64 bits: a seed above 2^63 was
+// once written and then refused on open).
+TEST(BuilderTest, EverySettingRoundTripsAtItsRangeLimits) {
+  auto round_trip = [](const BuildOptions& o) {
+    ASSERT_EQ(o.Check(), "");
+    nlohmann::json manifest;
+    manifest["settings"] = BuildSettingsToJson(o);
+    const BuildOptions back = BuildOptionsFromManifest(manifest, "m");
+    EXPECT_EQ(BuildSettingsToJson(back), manifest["settings"]);
+    EXPECT_EQ(back.vocabulary.seed, o.vocabulary.seed);
+    EXPECT_EQ(back.vocabulary.branching, o.vocabulary.branching);
+    EXPECT_EQ(back.features.orb.scale_factor, o.features.orb.scale_factor);
+    EXPECT_EQ(back.crop_options.min_region_pixels, o.crop_options.min_region_pixels);
+  };
+  BuildOptions lo;
+  lo.crop = CropMode::kChroma;
+  lo.resize = 1;
+  lo.png_compression = 0;
+  lo.store_images = false;
+  lo.extract_in_context = false;
+  lo.crop_options.smooth_sigma = 0.0;
+  lo.crop_options.percentile = 0.0;
+  lo.crop_options.padding = 0;
+  lo.crop_options.min_fast_keypoints = 0;
+  lo.crop_options.fast_threshold = 1;
+  lo.crop_options.fast_nonmax = false;
+  lo.crop_options.min_region_pixels = 1;
+  lo.features.type = FeatureType::kSurf;
+  lo.features.upscale_below = 0;
+  lo.features.orb.max_features = 1;
+  lo.features.orb.scale_factor = std::nextafter(1.0, 2.0);
+  lo.features.orb.num_levels = 1;
+  lo.features.orb.edge_threshold = 0;
+  lo.features.orb.fast_threshold = 1;
+  lo.features.orb.patch_size = 2;
+  lo.features.surf.hessian_threshold = 0.0;
+  lo.features.surf.num_octaves = 1;
+  lo.features.surf.num_octave_layers = 1;
+  lo.features.surf.extended = false;
+  lo.features.surf.upright = false;
+  lo.features.surf.max_features = 0;
+  lo.index = IndexKind::kBow;
+  lo.vocabulary.branching = 2;
+  lo.vocabulary.depth = 1;
+  lo.vocabulary.iterations = 1;
+  lo.vocabulary.max_training_descriptors = 1000;
+  lo.vocabulary.seed = 0;
+  lo.bow.direct_level = 0;
+  round_trip(lo);
+
+  BuildOptions hi = lo;
+  hi.crop = CropMode::kNone;
+  hi.resize = 16;
+  hi.png_compression = 9;
+  hi.store_images = true;
+  hi.extract_in_context = true;
+  hi.crop_options.smooth_sigma = 50.0;
+  hi.crop_options.percentile = 99.9;
+  hi.crop_options.padding = 4096;
+  hi.crop_options.min_fast_keypoints = 100000;
+  hi.crop_options.fast_threshold = 255;
+  hi.crop_options.fast_nonmax = true;
+  hi.crop_options.min_region_pixels = 100000000;
+  hi.features.type = FeatureType::kOrb;
+  hi.features.upscale_below = 4096;
+  hi.features.orb.max_features = 100000;
+  hi.features.orb.scale_factor = 4.0;
+  hi.features.orb.num_levels = 32;
+  hi.features.orb.edge_threshold = 512;
+  hi.features.orb.fast_threshold = 255;
+  hi.features.orb.patch_size = 512;
+  hi.features.surf.hessian_threshold = 1e6;
+  hi.features.surf.num_octaves = 8;  // SurfOptions::Check's limits
+  hi.features.surf.num_octave_layers = 8;
+  hi.features.surf.extended = true;
+  hi.features.surf.upright = true;
+  hi.features.surf.max_features = 1000000;
+  hi.vocabulary.branching = 64;
+  hi.vocabulary.depth = 4;  // 64^4 = 2^24 words, the limit
+  hi.vocabulary.iterations = 100;
+  hi.vocabulary.max_training_descriptors = 100000000;
+  hi.vocabulary.seed = UINT64_MAX;
+  hi.bow.direct_level = 4;
+  round_trip(hi);
+  hi.vocabulary.seed = (uint64_t{1} << 63) + 1;
+  round_trip(hi);
+
+  // A negative or fractional seed is refused, naming the field.
+  nlohmann::json manifest;
+  manifest["settings"] = BuildSettingsToJson(hi);
+  manifest["settings"]["vocabulary"]["seed"] = -1;
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { BuildOptionsFromManifest(manifest, "m"); },
+                                             {"seed is negative"}));
+  manifest["settings"]["vocabulary"]["seed"] = 1.5;
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { BuildOptionsFromManifest(manifest, "m"); },
+                                             {"seed is not an integer"}));
+}
+
 // A manifest is input from outside: every field is type-checked strictly and
 // range-checked; the error names the database and the field.
 TEST(BuilderTest, MalformedManifestSettingsAreRejected) {
@@ -500,14 +599,15 @@ TEST(BuilderTest, KilledBuildLeavesPreviousDatabase) {
   ASSERT_GT(pid, 0);
   int status = 0;
   pid_t done = 0;
-  for (int waited = 0; waited < 1200 && done == 0; ++waited) {
+  // A generous limit (sanitizers, a busy machine): it only ends a hang.
+  for (int waited = 0; waited < 12000 && done == 0; ++waited) {
     done = ::waitpid(pid, &status, WNOHANG);
     if (done == 0) std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   if (done == 0) {
     ::kill(pid, SIGKILL);
     ::waitpid(pid, &status, 0);
-    FAIL() << "the child build did not finish within 60 s";
+    FAIL() << "the child build did not finish within 600 s";
   }
   ASSERT_TRUE(WIFEXITED(status));
   EXPECT_EQ(WEXITSTATUS(status), 0);

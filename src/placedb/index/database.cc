@@ -99,7 +99,57 @@ std::string CheckKeyframe(const Keyframe& k) {
   }
   if (k.source.size() > kMaxPathBytes || k.image_file.size() > kMaxPathBytes)
     return "a path is longer than 64 KiB";
+  if (k.source.find('\0') != std::string::npos) return "the source path holds a NUL byte";
+  if (!IsStoredImageName(k.image_file)) {
+    return "stored image name '" + EscapeForTerminal(k.image_file) +
+           "' is not images/<plain file name> (a name inside the database's images folder)";
+  }
   return "";
+}
+
+bool IsStoredImageName(const std::string& name) {
+  constexpr size_t kPrefix = sizeof(kStoredImageFolder) - 1;
+  return name.empty() || (name.size() > kPrefix + 1 && name.compare(0, kPrefix, kStoredImageFolder) == 0 &&
+                          name[kPrefix] == '/' && IsPlainFileName(name.substr(kPrefix + 1)));
+}
+
+std::string CheckKeypoints(const cv::KeyPoint* keypoints, size_t count, cv::Size image_size) {
+  constexpr float kMaxSide = 1 << 20;  // CheckKeyframe's largest image side
+  const bool known = image_size.width > 0 && image_size.height > 0;
+  const float tolerance = kKeypointTolerancePx;
+  const float max_x = (known ? static_cast<float>(image_size.width) : kMaxSide) + tolerance;
+  const float max_y = (known ? static_cast<float>(image_size.height) : kMaxSide) + tolerance;
+  for (size_t i = 0; i < count; ++i) {
+    const cv::KeyPoint& kp = keypoints[i];
+    if (!std::isfinite(kp.pt.x) || !std::isfinite(kp.pt.y) || !std::isfinite(kp.size) ||
+        !std::isfinite(kp.angle) || !std::isfinite(kp.response)) {
+      return "has a keypoint that is not finite (keypoint " + std::to_string(i) + ")";
+    }
+    if (!(kp.pt.x >= -tolerance && kp.pt.x <= max_x && kp.pt.y >= -tolerance &&
+          kp.pt.y <= max_y)) {
+      return "has a keypoint outside its " +
+             (known ? "stored image (" + std::to_string(image_size.width) + "x" +
+                          std::to_string(image_size.height) + ")"
+                    : std::string("largest possible image (2^20 pixels a side)")) +
+             ": keypoint " + std::to_string(i) + " at (" + std::to_string(kp.pt.x) + ", " +
+             std::to_string(kp.pt.y) + ")";
+    }
+  }
+  return "";
+}
+
+bool AllFinite(const float* values, size_t count) {
+  // A float is finite when its exponent bits are not all ones: the largest
+  // magnitude bit pattern tells for the whole array (a max reduction, which
+  // the compiler vectorises).
+  uint32_t largest = 0;
+  for (size_t i = 0; i < count; ++i) {
+    uint32_t bits;
+    std::memcpy(&bits, values + i, 4);
+    bits &= 0x7fffffffu;
+    largest = bits > largest ? bits : largest;
+  }
+  return largest < 0x7f800000u;
 }
 
 Database::Database(FeatureType type, int descriptor_bytes)
@@ -178,10 +228,15 @@ void Database::AddKeyframe(Keyframe keyframe, const FeatureSet& features) {
             features.descriptors.depth() == (feature_type_ == FeatureType::kOrb ? CV_8U : CV_32F),
         "descriptors of the wrong element type");
   }
-  for (const cv::KeyPoint& kp : features.keypoints) {
-    PLACEDB_CHECK(std::isfinite(kp.pt.x) && std::isfinite(kp.pt.y) && std::isfinite(kp.size) &&
-                      std::isfinite(kp.angle) && std::isfinite(kp.response),
-                  "keyframe ", keyframe.id, " has a keypoint that is not finite");
+  const std::string bad_keypoints =
+      CheckKeypoints(features.keypoints.data(), features.keypoints.size(), keyframe.stored_size);
+  if (!bad_keypoints.empty()) PLACEDB_THROW_INVALID("keyframe ", keyframe.id, " ", bad_keypoints);
+  if (feature_type_ == FeatureType::kSurf && rows > 0) {
+    for (int r = 0; r < rows; ++r) {
+      PLACEDB_CHECK(AllFinite(features.descriptors.ptr<float>(r), descriptor_bytes_ / 4),
+                    "keyframe ", keyframe.id, " has a SURF descriptor value that is not finite (row ",
+                    r, ")");
+    }
   }
   PLACEDB_CHECK(IndexOfId(keyframe.id) < 0, "duplicate keyframe id ", keyframe.id);
   CopyOnWrite();
@@ -283,12 +338,17 @@ Database::SaveResult Database::Save(const std::string& dir) const {
   if (!HostIsLittleEndian()) PLACEDB_THROW_RUNTIME("placedb databases need a little-endian host");
   std::error_code ec;
   PLACEDB_CHECK(fs::is_directory(dir, ec), "database directory does not exist: ", dir);
+  if (!subset_.all() && fs::exists(fs::path(dir) / kManifestFile, ec)) {
+    PLACEDB_THROW_INVALID("cannot save ", subset_.Describe(), " into ", dir,
+                          ": it holds a database, which the subset would replace (save a subset "
+                          "into a new folder)");
+  }
   const uint32_t num_sections = 4;
   const size_t table_end = kf::kHeaderBytes + num_sections * kf::kSectionEntryBytes;
   char header[kf::kHeaderBytes + 4 * kf::kSectionEntryBytes] = {};
 
-  const std::string tmp_name = "keyframes.writing.bin";
-  AtomicFileWriter out((fs::path(dir) / tmp_name).string());
+  // Written to a temporary file, committed under its content name.
+  AtomicFileWriter out((fs::path(dir) / "keyframes.bin").string());
   out.Write(header, sizeof(header));  // filled in at the end
   out.Align(kf::kSectionAlignment);
   struct Written {
@@ -385,16 +445,13 @@ Database::SaveResult Database::Save(const std::string& dir) const {
   static_assert(sizeof(header) == kf::kHeaderBytes + 4 * kf::kSectionEntryBytes, "header size");
   (void)table_end;
   out.WriteAt(0, header, sizeof(header));
-  out.Commit();  // keyframes.writing.bin, durable
 
   // The new generation under its own name, then the manifest that names it,
   // then the old generation goes: a crash leaves one complete pair.
   SaveResult result;
   result.keyframes_file = KeyframesFileName(checksum);
   result.keyframes_bytes = file_bytes;
-  const fs::path final_path = fs::path(dir) / result.keyframes_file;
-  fs::rename(fs::path(dir) / tmp_name, final_path);
-  SyncDirectory(dir);
+  out.CommitAs((fs::path(dir) / result.keyframes_file).string());  // durable
 
   nlohmann::json manifest = info_;
   manifest["format"] = "placedb-database";
@@ -407,7 +464,7 @@ Database::SaveResult Database::Save(const std::string& dir) const {
                        {"keyframes_bytes", file_bytes},
                        {"keyframes_checksum", ChecksumHex(checksum)}};
   if (!subset_.all()) manifest["subset_of"] = subset_.Describe();
-  WriteFileAtomic((fs::path(dir) / kManifestFile).string(), manifest.dump(2) + "\n");
+  WriteFileAtomic((fs::path(dir) / kManifestFile).string(), DumpJson(manifest, 2) + "\n");
 
   for (const auto& entry : fs::directory_iterator(dir, ec)) {
     const std::string name = entry.path().filename().string();
@@ -567,8 +624,6 @@ void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const 
                              Field<double>(r, rec::kQx + 8), Field<double>(r, rec::kQx + 16));
       k.pose = pose;
     }
-    const std::string reason = CheckKeyframe(k);
-    if (!reason.empty()) fail("keyframe record ", i, " (id ", k.id, "): ", reason);
     if (!seen.insert(k.id).second) fail("keyframe id ", k.id, " appears twice");
     ids[i] = k.id;
     offsets[i] = Field<uint64_t>(r, rec::kFeatureOffset);
@@ -591,6 +646,8 @@ void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const 
     const char* text = b + strings.offset + string_offset;
     k.source.assign(text, source_len);
     k.image_file.assign(text + source_len, image_len);
+    const std::string reason = CheckKeyframe(k);
+    if (!reason.empty()) fail("keyframe record ", i, " (id ", k.id, "): ", reason);
   }
   if (expected_offset != num_features)
     fail("the keyframes own ", expected_offset, " features but the file holds ", num_features);
@@ -605,14 +662,14 @@ void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const 
     // What is wrong with the first kept keyframe whose keypoints are bad.
     std::string bad_keypoints;
     const auto check_keypoints = [&](size_t i) {
+      const std::string bad =
+          CheckKeypoints(file_keypoints + offsets[i], counts[i], all[i].stored_size);
+      if (!bad.empty()) {
+        bad_keypoints = "keyframe " + std::to_string(all[i].id) + " " + bad;
+        return;
+      }
       for (uint32_t f = 0; f < counts[i]; ++f) {
         const cv::KeyPoint& kp = file_keypoints[offsets[i] + f];
-        if (!std::isfinite(kp.pt.x) || !std::isfinite(kp.pt.y) || !std::isfinite(kp.size) ||
-            !std::isfinite(kp.angle) || !std::isfinite(kp.response)) {
-          bad_keypoints =
-              "keyframe " + std::to_string(all[i].id) + " has a keypoint that is not finite";
-          return;
-        }
         if (feature_type_ == FeatureType::kSurf && (kp.class_id >= 0) != (f < positives[i])) {
           bad_keypoints = "keyframe " + std::to_string(all[i].id) +
                           ": keypoints are not grouped by Laplacian sign";
@@ -642,8 +699,37 @@ void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const 
       if (sum.Digest() != keypoints.checksum)
         fail("keypoint section checksum mismatch (the file is corrupted)");
     };
-    RunTogether({hash_and_check_keypoints, [&] { verify(descriptors, "descriptor section"); }});
+    // The descriptors the same way: SURF rows of kept keyframes must be
+    // finite, checked while their stretch is in cache.
+    std::string bad_descriptors;
+    const auto hash_and_check_descriptors = [&] {
+      if (feature_type_ != FeatureType::kSurf) {
+        verify(descriptors, "descriptor section");
+        return;
+      }
+      Checksum64Stream sum;
+      const uint64_t stretch = std::max<uint64_t>(1, (256 << 10) / row_bytes);
+      const char* base = b + descriptors.offset;
+      for (uint64_t i = 0; i < num_keyframes;) {
+        uint64_t j = i + 1;
+        while (j < num_keyframes && offsets[j] + counts[j] - offsets[i] <= stretch) ++j;
+        const uint64_t first = offsets[i], last = offsets[j - 1] + counts[j - 1];
+        sum.Update(base + first * row_bytes, static_cast<size_t>((last - first) * row_bytes));
+        for (uint64_t k = i; k < j && bad_descriptors.empty(); ++k) {
+          if (kept[k] && !AllFinite(reinterpret_cast<const float*>(base + offsets[k] * row_bytes),
+                                    static_cast<size_t>(counts[k]) * row_bytes / 4)) {
+            bad_descriptors = "keyframe " + std::to_string(all[k].id) +
+                              " has a SURF descriptor value that is not finite";
+          }
+        }
+        i = j;
+      }
+      if (sum.Digest() != descriptors.checksum)
+        fail("descriptor section checksum mismatch (the file is corrupted)");
+    };
+    RunTogether({hash_and_check_keypoints, hash_and_check_descriptors});
     if (!bad_keypoints.empty()) fail(bad_keypoints);
+    if (!bad_descriptors.empty()) fail(bad_descriptors);
   }
   keyframes_.reserve(keep.size());
   for (const size_t i : keep) {

@@ -60,8 +60,36 @@ struct Keyframe {
 // crop channel outside [-1, 2], a negative size or crop, an image side above
 // 2^20 pixels, a crop outside a known original size, a scale that is not finite and in (0, 64], a
 // timestamp that is not finite, a pose with non-finite values or a quaternion that is not of unit
-// length, paths longer than 64 KiB.
+// length, paths longer than 64 KiB, a source path holding a NUL byte, a stored image name that is
+// not IsStoredImageName. The source path may hold any other bytes (it is the user's path, used
+// only to read that image back); it is escaped when printed (EscapeForTerminal) and JSON turns
+// bytes that are not UTF-8 into U+FFFD (DumpJson).
 std::string CheckKeyframe(const Keyframe& keyframe);
+
+// The folder of the stored images inside a database directory.
+constexpr char kStoredImageFolder[] = "images";
+// Whether `name` may be a keyframe's image_file: "" (no stored image) or
+// exactly "images/<name>" where <name> is IsPlainFileName (util/file_io.h):
+// one name of [A-Za-z0-9._-], 1 to 255 bytes, not starting with '.'. So no
+// further separator, no "..", no absolute path, no control character or NUL,
+// nothing that is not printable ASCII: joined to the database directory it
+// names a file inside its images folder, whatever the database file says.
+bool IsStoredImageName(const std::string& name);
+
+// Keypoint and descriptor values a database accepts (AddKeyframe, Load) and
+// a query must have (ValidateQueryFeatures).
+// Why `keypoints` cannot belong to an image of `image_size`, or "": a
+// position, size, angle or response that is not finite, or a position
+// outside the image by more than kKeypointTolerancePx (0 <= x <= width
+// within the tolerance; an unknown size, 0 x 0, bounds positions by the
+// largest image side, 2^20). Extraction puts keypoints in [0, width) x
+// [0, height); the tolerance covers rounding when keypoints are moved into a
+// crop or scaled back from an upscaled frame.
+constexpr float kKeypointTolerancePx = 1.0f;
+std::string CheckKeypoints(const cv::KeyPoint* keypoints, size_t count, cv::Size image_size);
+// Whether all `count` floats are finite (SURF descriptor rows): one
+// vectorisable pass.
+bool AllFinite(const float* values, size_t count);
 
 // What Load reads of the keyframe file.
 enum class LoadContents {
@@ -112,7 +140,9 @@ class Database {
   // Appends a keyframe with its features. std::invalid_argument when the
   // keyframe is impossible (CheckKeyframe), its id is taken, or the features'
   // type, width or count disagree with the database, or a keypoint is not
-  // finite. SURF features are reordered, positive Laplacian first.
+  // finite or lies outside the stored image (CheckKeypoints), or a SURF
+  // descriptor value is not finite. SURF features are reordered, positive
+  // Laplacian first.
   void AddKeyframe(Keyframe keyframe, const FeatureSet& features);
   // Room for keyframes and feature rows to be appended without moving any
   // storage (a database used in place from its file has none: the first
@@ -154,7 +184,9 @@ class Database {
   // corrupted, wrong-magic or wrong-version database (a version 1 database
   // says how to rebuild it), or one whose manifest and file disagree;
   // std::invalid_argument for a bad subset (an id that is not in the file).
-  // Saving a subset writes just that subset.
+  // Saving a subset writes just that subset, and only into a folder that
+  // holds no database (std::invalid_argument otherwise: the subset would
+  // replace the whole database).
   static Database Load(const std::string& dir, const LoadOptions& options);
   static Database Load(const std::string& dir, const KeyframeSubset& subset = KeyframeSubset());
 

@@ -22,9 +22,11 @@
 
 #include "placedb/feature/extractor.h"
 #include "placedb/index/keyframe_file.h"
+#include "placedb/index/query.h"
 #include "placedb/match/ratio_matcher.h"
 #include "placedb/util/checksum.h"
 #include "placedb/util/file_io.h"
+#include "placedb/util/json_reader.h"
 #include "placedb/util/testing.h"
 
 namespace placedb {
@@ -784,7 +786,11 @@ TEST(DatabaseSaveTest, KilledInPlaceSaveLeavesALoadableDatabase) {
 
 // A reader never pairs one generation's manifest with another's keyframe
 // file, while a writer keeps replacing the database in place: every load
-// sees the keyframes the manifest it read describes.
+// sees the keyframes the manifest it read describes. Bounded by counts, not
+// by time: the writer saves kSaves times (b, a, b, ...) and after each save
+// waits until the reader has completed two more loads, so at least one load
+// runs wholly between two saves (it must see the generation just saved)
+// while the others overlap the saves, however slow the machine.
 TEST(DatabaseSaveTest, ReadersSeeOneGenerationWhileAWriterSaves) {
   TempDir tmp;
   Database a = MakeDatabase(ExtractorOptions(), 3, false);
@@ -792,23 +798,46 @@ TEST(DatabaseSaveTest, ReadersSeeOneGenerationWhileAWriterSaves) {
   a.info()["generation"] = "a";
   b.info()["generation"] = "b";
   a.Save(tmp.Path());
-  std::atomic<bool> stop{false};
+  constexpr int kSaves = 40;
+  std::atomic<int> loads{0};
+  std::atomic<bool> writer_done{false}, reader_failed{false};
+  std::string writer_error, reader_error;
   std::thread writer([&] {
-    for (int n = 0; !stop; ++n) (n % 2 ? a : b).Save(tmp.Path());
+    try {
+      for (int n = 0; n < kSaves && !reader_failed; ++n) {
+        (n % 2 ? a : b).Save(tmp.Path());
+        const int target = loads.load() + 2;
+        while (loads.load() < target && !reader_failed) std::this_thread::yield();
+      }
+    } catch (const std::exception& e) {
+      writer_error = e.what();
+    }
+    writer_done = true;
   });
-  int loads = 0, mixed = 0;
-  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(2);
-  while (std::chrono::steady_clock::now() < until) {
-    const Database db = Database::Load(tmp.Path());
-    const bool with_poses = db.keyframe(0).pose.has_value();
-    mixed += with_poses != (db.info()["generation"] == "b");
-    ++loads;
+  int mixed = 0, seen_a = 0, seen_b = 0;
+  try {
+    while (!writer_done) {
+      const Database db = Database::Load(tmp.Path());
+      const bool with_poses = db.keyframe(0).pose.has_value();
+      const bool is_b = db.info()["generation"] == "b";
+      mixed += with_poses != is_b;
+      ++(is_b ? seen_b : seen_a);
+      ++loads;
+    }
+  } catch (const std::exception& e) {
+    reader_error = e.what();
+    reader_failed = true;
   }
-  stop = true;
   writer.join();
-  std::printf("%d loads during in-place saves, %d mixed\n", loads, mixed);
-  EXPECT_GT(loads, 50);
+  std::printf("%d loads during %d in-place saves (%d a, %d b), %d mixed\n", loads.load(),
+              kSaves, seen_a, seen_b, mixed);
+  EXPECT_EQ(writer_error, "");
+  EXPECT_EQ(reader_error, "");
   EXPECT_EQ(mixed, 0);
+  EXPECT_GE(loads.load(), 2 * kSaves);
+  // Each save was followed by a load that saw just that generation.
+  EXPECT_GE(seen_a, kSaves / 2);
+  EXPECT_GE(seen_b, kSaves / 2);
 }
 
 TEST(DatabaseTest, AddingSurfFeaturesToOrbDatabaseThrows) {
@@ -848,6 +877,374 @@ TEST(DatabaseTest, DuplicateKeyframeIdThrows) {
   db.AddKeyframe(k, set);
   EXPECT_EQ(db.size(), 3u);
   EXPECT_EQ(db.num_features(), features + set.size());
+}
+
+
+// ---- names, strings, keypoints and rows from a hostile file ------------------
+// (issue 17's hostile-input probe: each family crafted checksum-valid, so the
+// decoder's own checks must catch it).
+
+// A database saved in `dir` from `bytes` (a keyframe file image) resealed,
+// with a manifest that agrees with it: the checksums pass.
+void WriteResealedDatabase(const std::string& dir, const std::string& name,
+                           const nlohmann::json& manifest, std::string bytes) {
+  const uint64_t checksum = keyframe_file::Reseal(&bytes, true);
+  WriteBytes(dir + "/" + name, bytes);
+  nlohmann::json m = manifest;
+  m["files"]["keyframes_bytes"] = bytes.size();
+  m["files"]["keyframes_checksum"] = ChecksumHex(checksum);
+  WriteBytes(dir + "/manifest.json", m.dump(2));
+}
+
+// Where things lie in a saved keyframe file.
+struct FileLayout {
+  explicit FileLayout(const std::string& bytes) : bytes_(bytes) {}
+  uint64_t Section(uint32_t kind) const {
+    for (uint32_t s = 0; s < 4; ++s) {
+      uint32_t k;
+      uint64_t offset;
+      std::memcpy(&k, &bytes_[64 + 32 * s], 4);
+      std::memcpy(&offset, &bytes_[64 + 32 * s + 8], 8);
+      if (k == kind) return offset;
+    }
+    ADD_FAILURE() << "no section " << kind;
+    return 0;
+  }
+  size_t Record(size_t i) const { return Section(keyframe_file::kKeyframes) + 152 * i; }
+  template <typename T>
+  T Get(size_t at) const {
+    T v;
+    std::memcpy(&v, &bytes_[at], sizeof(T));
+    return v;
+  }
+  const std::string& bytes_;
+};
+
+template <typename T>
+void PutAt(std::string* bytes, size_t at, T value) {
+  std::memcpy(&(*bytes)[at], &value, sizeof(T));
+}
+
+// Keyframe i's source and stored-image name replaced (they must fit in the
+// bytes its strings take now).
+bool SetStrings(std::string* bytes, size_t i, const std::string& source, const std::string& image) {
+  const FileLayout f(*bytes);
+  const size_t r = f.Record(i);
+  const uint64_t offset = f.Get<uint64_t>(r + 136);
+  const uint32_t room = f.Get<uint32_t>(r + 132) + f.Get<uint32_t>(r + 144);
+  if (source.size() + image.size() > room) return false;
+  const size_t at = f.Section(keyframe_file::kStrings) + offset;
+  std::memcpy(&(*bytes)[at], source.data(), source.size());
+  std::memcpy(&(*bytes)[at + source.size()], image.data(), image.size());
+  PutAt<uint32_t>(bytes, r + 132, static_cast<uint32_t>(source.size()));
+  PutAt<uint32_t>(bytes, r + 144, static_cast<uint32_t>(image.size()));
+  return true;
+}
+
+// Whether `name`, joined to `dir`, names a file directly inside dir/images:
+// the oracle the decoder's rule is held to (lexically, as a path).
+bool InsideImages(const std::string& dir, const std::string& name) {
+  if (name.empty()) return true;
+  const fs::path joined = (fs::path(dir) / name).lexically_normal();
+  return joined.parent_path() == (fs::path(dir) / "images").lexically_normal() &&
+         joined.filename() != "." && joined.filename() != "..";
+}
+
+TEST_F(DatabaseFileTest, StoredImageNamesStayInsideTheDatabase) {
+  const std::string source = db_->keyframe(0).source.substr(0, 8);
+  for (const std::string& name :
+       {std::string("../victim.txt"), std::string("../../victim.txt"), std::string("/tmp/victim"),
+        std::string("/etc/passwd"), std::string("images/../../victim"),
+        std::string("images/../manifest.json"), std::string("images/a/b.png"),
+        std::string("images//x.png"), std::string("images/"), std::string("images/."),
+        std::string("images/.."), std::string("images/.hidden.png"),
+        std::string("images/x\x1b[31m.png"), std::string("images/x\n.png"),
+        std::string("images/x\0.png", 13), std::string("images/caf\xe9.png"),
+        std::string("images\\x.png"), std::string("imagesx.png"), std::string("images/x.png/"),
+        std::string("./images/1.png"), std::string("images/ x.png"), std::string("IMAGES/1.png"),
+        std::string("images/x\x7f.png"), std::string("x.png")}) {
+    std::string bad = bytes_;
+    ASSERT_TRUE(SetStrings(&bad, 0, source, name));
+    WriteResealed(bad);
+    EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), {"keyframe record 0 (id 10)",
+                                                          "stored image name"}))
+        << EscapeForTerminal(name);
+  }
+  // Plain names load; so does a keyframe without a stored image.
+  for (const std::string& name : {"images/000001.png", "images/a-b_c.D9.png", ""}) {
+    std::string good = bytes_;
+    ASSERT_TRUE(SetStrings(&good, 0, source, name));
+    WriteResealed(good);
+    EXPECT_EQ(Database::Load(Dir()).keyframe(0).image_file, name);
+  }
+  // A NUL cannot be in a path.
+  std::string nul = bytes_;
+  ASSERT_TRUE(SetStrings(&nul, 0, std::string("/data/a\0b.png", 13), "images/1.png"));
+  WriteResealed(nul);
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "source path holds a NUL byte"));
+}
+
+// Source paths are the user's bytes: not UTF-8, control characters, they
+// open; JSON of them is valid UTF-8 and terminal text is escaped.
+TEST_F(DatabaseFileTest, SourcePathsOfAnyBytesOpenAndPrintSafely) {
+  const std::string source = std::string("/data/caf\xe9/\x1b[2J\n\x80\xff.png");
+  std::string bytes = bytes_;
+  ASSERT_TRUE(SetStrings(&bytes, 0, source, "images/1.png"));
+  WriteResealed(bytes);
+  const Database db = Database::Load(Dir());
+  ASSERT_EQ(db.keyframe(0).source, source);
+  const std::string text = DumpJson(nlohmann::json{{"source", db.keyframe(0).source}});
+  EXPECT_TRUE(IsValidUtf8(text));
+  const std::string dumped = nlohmann::json::parse(text)["source"].get<std::string>();
+  EXPECT_EQ(dumped.compare(0, 9, "/data/caf"), 0) << dumped;
+  EXPECT_NE(dumped.find("\xef\xbf\xbd"), std::string::npos) << dumped;  // U+FFFD
+  EXPECT_NE(dumped.find("\x1b[2J\n"), std::string::npos) << dumped;  // valid UTF-8 kept
+  EXPECT_EQ(EscapeForTerminal(source), "/data/caf\\xe9/\\x1b[2J\\x0a\\x80\\xff.png");
+}
+
+TEST_F(DatabaseFileTest, KeypointsLieInsideTheStoredImage) {
+  const FileLayout f(bytes_);
+  const size_t kp = f.Section(keyframe_file::kKeypoints);  // keyframe 0's first keypoint
+  ASSERT_EQ(db_->keyframe(0).stored_size, cv::Size(160, 120));
+  const float inf = std::numeric_limits<float>::infinity();
+  for (const auto& [at, value] : std::vector<std::pair<size_t, float>>{
+           {kp, -5.0f}, {kp, -1.01f}, {kp, 161.5f}, {kp + 4, 121.01f}, {kp, 1e30f}, {kp + 4, -1e30f},
+           {kp, 3e38f}, {kp + 28 * 3 + 4, 1e6f}}) {
+    std::string bad = bytes_;
+    PutAt<float>(&bad, at, value);
+    WriteResealed(bad);
+    EXPECT_TRUE(ThrowsWith<std::runtime_error>(
+        LoadFn(), {"keyframe 10 has a keypoint outside its stored image (160x120)"}))
+        << value;
+  }
+  std::string bad = bytes_;
+  PutAt<float>(&bad, kp, -inf);
+  WriteResealed(bad);
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "keypoint that is not finite"));
+  // On the border and within the tolerance of a pixel: loads.
+  for (const auto& [at, value] : std::vector<std::pair<size_t, float>>{
+           {kp, 0.0f}, {kp, -1.0f}, {kp, 160.0f}, {kp, 161.0f}, {kp + 4, 121.0f}}) {
+    std::string good = bytes_;
+    PutAt<float>(&good, at, value);
+    WriteResealed(good);
+    EXPECT_EQ(Database::Load(Dir()).size(), 3u) << value;
+  }
+  // A keyframe of unknown stored size (0 x 0): the largest image bounds it.
+  std::string unknown = bytes_;
+  PutAt<int32_t>(&unknown, f.Record(0) + 32, 0);
+  PutAt<int32_t>(&unknown, f.Record(0) + 36, 0);
+  PutAt<float>(&unknown, kp, 5000.0f);
+  WriteResealed(unknown);
+  EXPECT_EQ(Database::Load(Dir()).size(), 3u);
+  PutAt<float>(&unknown, kp, 2e6f);
+  WriteResealed(unknown);
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "largest possible image"));
+}
+
+ExtractorOptions SmallSurf() {
+  ExtractorOptions options;
+  options.type = FeatureType::kSurf;
+  options.surf.max_features = 60;
+  return options;
+}
+
+TEST(DatabaseRowsTest, NonFiniteSurfRowsAreRefused) {
+  TempDir tmp;
+  const Database surf = MakeDatabase(SmallSurf(), 2, false);
+  const std::string name = surf.Save(tmp.Path()).keyframes_file;
+  const std::string bytes = ReadFileToString(tmp.Path(name));
+  const nlohmann::json manifest = nlohmann::json::parse(ReadFileToString(tmp.Path("manifest.json")));
+  const size_t rows = FileLayout(bytes).Section(keyframe_file::kDescriptors);
+  const size_t second = rows + surf.FeatureCount(0) * 256;  // keyframe 20's first row
+  for (const auto& [at, value] : std::vector<std::pair<size_t, float>>{
+           {rows, std::nanf("")},
+           {rows + 4 * 63, std::numeric_limits<float>::infinity()},
+           {second + 8, -std::numeric_limits<float>::infinity()},
+           {bytes.size() - 4, std::nanf("7")}}) {
+    std::string bad = bytes;
+    PutAt<float>(&bad, at, value);
+    WriteResealedDatabase(tmp.Path(), name, manifest, bad);
+    EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { Database::Load(tmp.Path()); },
+                                               "has a SURF descriptor value that is not finite"));
+  }
+  // A subset that leaves the damaged keyframe out opens; the checksum still
+  // covers every row.
+  std::string bad = bytes;
+  PutAt<float>(&bad, second + 8, std::nanf(""));
+  WriteResealedDatabase(tmp.Path(), name, manifest, bad);
+  EXPECT_EQ(Database::Load(tmp.Path(), KeyframeSubset::Ids({10})).size(), 1u);
+  bad[second + 100] ^= 1;
+  WriteBytes(tmp.Path(name), bad);
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { Database::Load(tmp.Path()); },
+                                             "descriptor section checksum mismatch"));
+  // Large but finite values are data.
+  std::string big = bytes;
+  PutAt<float>(&big, rows, 3e38f);
+  WriteResealedDatabase(tmp.Path(), name, manifest, big);
+  EXPECT_EQ(Database::Load(tmp.Path()).size(), 2u);
+}
+
+// The same rules for features from outside: AddKeyframe and a query's.
+TEST(DatabaseRowsTest, AddedAndQueryFeaturesAreChecked) {
+  Database db = MakeDatabase(SmallSurf(), 1, false);
+  const Keyframe model = db.keyframe(0);
+  const FeatureSet features = db.Features(0);
+  ASSERT_GT(features.size(), 3u);
+  Keyframe k = model;
+  k.id = 77;
+  for (const std::string& name : {"../victim.png", "/tmp/x.png", "images/a/b.png"}) {
+    k.image_file = name;
+    EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { db.AddKeyframe(k, features); },
+                                                  "stored image name"))
+        << name;
+  }
+  k.image_file = "images/000077.png";
+  FeatureSet outside = features;
+  outside.keypoints[2].pt.x = -5.0f;
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { db.AddKeyframe(k, outside); },
+                                                "keypoint outside its stored image"));
+  outside.keypoints[2].pt = {1e30f, 3.0f};
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { db.AddKeyframe(k, outside); },
+                                                "keypoint outside its stored image"));
+  FeatureSet nan_row = features;
+  nan_row.descriptors = features.descriptors.clone();
+  nan_row.descriptors.at<float>(1, 5) = std::nanf("");
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { db.AddKeyframe(k, nan_row); },
+                                                "SURF descriptor value that is not finite"));
+  EXPECT_EQ(db.size(), 1u);
+  db.AddKeyframe(k, features);
+  EXPECT_EQ(db.size(), 2u);
+
+  // A query's features: no image size to hold them to but the largest.
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ValidateQueryFeatures(nan_row, db); },
+                                                "SURF descriptor value that is not finite"));
+  FeatureSet far = features;
+  far.keypoints[0].pt.y = 1e30f;
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ValidateQueryFeatures(far, db); },
+                                                "largest possible image"));
+  ValidateQueryFeatures(features, db);
+}
+
+// The mutation families of issue 17, each database checksum-valid: stored
+// image names, source strings of any bytes, keypoint positions, SURF rows.
+// What loads must hold to the rules (names inside images/, strings that
+// print and dump safely, keypoints within a pixel of the stored image,
+// finite rows); what breaks them must be refused, with
+// std::runtime_error.
+TEST_F(DatabaseFileTest, MutatedNamesStringsKeypointsAndRows) {
+  std::mt19937_64 rng(20261717);
+  const FileLayout f(bytes_);
+  const std::vector<std::string> pieces = {
+      "images/", "images", "../", "..", ".", "/", "//", "a", "000001.png", "\x1b", "\n", "\r",
+      std::string(1, '\0'), "\xe9", "\xc3\xa9", "\\", " ", "-", "_", "~", "$HOME", "*", "\x7f",
+      "\xc2\x9b", "%2e%2e"};
+  int names_loaded = 0, names_refused = 0;
+  for (int i = 0; i < 400; ++i) {
+    std::string name;
+    if (rng() % 4 == 0) {
+      name = "images/";
+      for (size_t n = rng() % 12; n > 0; --n) name += static_cast<char>(rng() % 256);
+    } else {
+      for (size_t n = 1 + rng() % 5; n > 0; --n) name += pieces[rng() % pieces.size()];
+    }
+    const size_t k = rng() % 3;
+    std::string bad = bytes_;
+    if (!SetStrings(&bad, k, "", name)) continue;
+    WriteResealed(bad);
+    try {
+      const Database db = Database::Load(Dir());
+      ++names_loaded;
+      for (const Keyframe& kf : db.keyframes()) {
+        EXPECT_TRUE(InsideImages(Dir(), kf.image_file)) << EscapeForTerminal(kf.image_file);
+        for (const char c : kf.image_file) EXPECT_TRUE(c > 0x20 && c < 0x7f) << int{c};
+      }
+    } catch (const std::runtime_error& e) {
+      ++names_refused;
+      EXPECT_FALSE(InsideImages(Dir(), name) && IsPlainFileName(name.substr(7)) &&
+                   name.compare(0, 7, "images/") == 0)
+          << e.what();
+    }
+  }
+  EXPECT_GT(names_refused, 300);
+  // Strings of any bytes but NUL: always open, dump and print safely.
+  for (int i = 0; i < 200; ++i) {
+    std::string source;
+    for (size_t n = 1 + rng() % 40; n > 0; --n) source += static_cast<char>(1 + rng() % 255);
+    std::string bytes = bytes_;
+    const size_t k = rng() % 3;
+    ASSERT_TRUE(SetStrings(&bytes, k, source, ""));
+    WriteResealed(bytes);
+    const Database db = Database::Load(Dir());
+    EXPECT_EQ(db.keyframe(k).source, source);
+    nlohmann::json j = nlohmann::json::object();
+    for (const Keyframe& kf : db.keyframes()) j["sources"].push_back(kf.source);
+    const std::string text = DumpJson(j, i % 2 ? 2 : -1);
+    EXPECT_TRUE(IsValidUtf8(text));
+    EXPECT_NO_THROW(nlohmann::json::parse(text));
+    const std::string shown = EscapeForTerminal(source);
+    EXPECT_TRUE(IsValidUtf8(shown));
+    for (const char c : shown) EXPECT_FALSE((c >= 0 && c < 0x20) || c == 0x7f);
+  }
+  // Keypoint positions: refused exactly when outside [-1, side + 1].
+  const size_t kp = f.Section(keyframe_file::kKeypoints);
+  const uint64_t features = db_->num_features();
+  const float specials[] = {-1e30f, 1e30f, -5.0f, -1.0f, -0.999f, 0.0f, 160.0f, 161.0f, 161.001f,
+                            120.0f, 121.0f, 3e38f, std::numeric_limits<float>::infinity(),
+                            std::nanf("")};
+  int kp_loaded = 0, kp_refused = 0;
+  for (int i = 0; i < 400; ++i) {
+    const uint64_t row = rng() % features;
+    const bool y = rng() % 2;
+    const float value = rng() % 3 == 0 ? specials[rng() % (sizeof(specials) / sizeof(float))]
+                                       : -20.0f + static_cast<float>(rng() % 20000) / 100.0f;
+    std::string bad = bytes_;
+    PutAt<float>(&bad, kp + row * 28 + (y ? 4 : 0), value);
+    WriteResealed(bad);
+    const float side = y ? 120.0f : 160.0f;
+    const bool possible = value >= -1.0f && value <= side + 1.0f;
+    try {
+      Database::Load(Dir());
+      ++kp_loaded;
+      EXPECT_TRUE(possible) << value;
+    } catch (const std::runtime_error& e) {
+      ++kp_refused;
+      EXPECT_FALSE(possible) << value << ": " << e.what();
+    }
+  }
+  EXPECT_GT(kp_loaded, 50);
+  EXPECT_GT(kp_refused, 50);
+}
+
+TEST(DatabaseRowsTest, MutatedSurfRows) {
+  TempDir tmp;
+  const Database surf = MakeDatabase(SmallSurf(), 3, false);
+  const std::string name = surf.Save(tmp.Path()).keyframes_file;
+  const std::string bytes = ReadFileToString(tmp.Path(name));
+  const nlohmann::json manifest = nlohmann::json::parse(ReadFileToString(tmp.Path("manifest.json")));
+  const size_t rows = FileLayout(bytes).Section(keyframe_file::kDescriptors);
+  const size_t floats = surf.num_features() * 64;
+  std::mt19937_64 rng(1717);
+  int loaded = 0, refused = 0;
+  for (int i = 0; i < 300; ++i) {
+    std::string bad = bytes;
+    const size_t at = rows + 4 * (rng() % floats);
+    uint32_t bits = static_cast<uint32_t>(rng());
+    if (rng() % 2) bits |= 0x7f800000u;  // inf or NaN, any sign and payload
+    PutAt<uint32_t>(&bad, at, bits);
+    float value;
+    std::memcpy(&value, &bits, 4);
+    WriteResealedDatabase(tmp.Path(), name, manifest, bad);
+    try {
+      Database::Load(tmp.Path());
+      ++loaded;
+      EXPECT_TRUE(std::isfinite(value)) << bits;
+    } catch (const std::runtime_error& e) {
+      ++refused;
+      EXPECT_FALSE(std::isfinite(value)) << e.what();
+    }
+  }
+  EXPECT_GT(loaded, 50);
+  EXPECT_GT(refused, 50);
 }
 
 }  // namespace

@@ -18,12 +18,14 @@ void SortAndCut(std::vector<BowIndex::Scored>* list, size_t max_results) {
 }  // namespace
 
 std::vector<BowIndex::Scored> GrowingBowIndex::ScoreEach(const BowVector& query, size_t max_results,
-                                                         const std::vector<uint32_t>& among) const {
+                                                         const std::vector<uint32_t>& among,
+                                                         const uint8_t* excluded) const {
   PLACEDB_CHECK(among.empty() || among.back() < size(), "keyframe index ", among.back(),
                 " is out of range");
   const uint32_t base = static_cast<uint32_t>(base_.size());
   std::vector<BowIndex::Scored> out;
   for (const uint32_t index : among) {
+    if (excluded != nullptr && excluded[index]) continue;
     const double score =
         BowScore(query, index < base ? base_.KeyframeVector(index) : added_[index - base]);
     if (score > 0.0) out.push_back({index, score});
@@ -49,15 +51,15 @@ Span<uint32_t> GrowingBowIndex::DirectNodes(uint32_t index) const {
 
 std::vector<BowIndex::Scored> GrowingBowIndex::Query(const BowVector& query, size_t max_results,
                                                      const std::vector<uint32_t>* among,
-                                                     const Deadline& deadline,
-                                                     bool* stopped) const {
+                                                     const Deadline& deadline, bool* stopped,
+                                                     const uint8_t* excluded) const {
   const uint32_t base = static_cast<uint32_t>(base_.size());
   // A few keyframes (a cluster and its neighbours) are scored one by one:
   // cheaper than walking the query's postings over the whole database. The
   // scores are the same either way (BowIndex::Query's are BowScore's).
   if (among != nullptr && among->size() * kDirectScoreFactor < size())
-    return ScoreEach(query, max_results, *among);
-  if (added_.empty()) return base_.Query(query, max_results, among, deadline, stopped);
+    return ScoreEach(query, max_results, *among, excluded);
+  if (added_.empty()) return base_.Query(query, max_results, among, deadline, stopped, excluded);
   std::vector<uint32_t> base_among, added_among;
   if (among != nullptr) {
     PLACEDB_CHECK(among->empty() || among->back() < size(), "keyframe index ", among->back(),
@@ -68,7 +70,8 @@ std::vector<BowIndex::Scored> GrowingBowIndex::Query(const BowVector& query, siz
   }
   bool base_stopped = false;
   std::vector<BowIndex::Scored> out = base_.Query(
-      query, max_results, among != nullptr ? &base_among : nullptr, deadline, &base_stopped);
+      query, max_results, among != nullptr ? &base_among : nullptr, deadline, &base_stopped,
+      excluded);
   if (base_stopped) {
     if (stopped != nullptr) *stopped = true;
     return out;
@@ -84,6 +87,7 @@ std::vector<BowIndex::Scored> GrowingBowIndex::Query(const BowVector& query, siz
   touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
   for (const uint32_t offset : touched) {
     const uint32_t index = base + offset;
+    if (excluded != nullptr && excluded[index]) continue;
     if (among != nullptr && !std::binary_search(added_among.begin(), added_among.end(), index))
       continue;
     const double score = BowScore(query, added_[offset]);

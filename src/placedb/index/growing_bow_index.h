@@ -39,15 +39,18 @@ class GrowingBowIndex {
   // `among` (sorted, unique indices < size()), only those.
   // Under `deadline`, as BowIndex::Query: stops once it has passed and sets
   // *stopped (the added keyframes are then not scored).
+  // `excluded`: as BowIndex::Query's, over all size() keyframes.
   std::vector<BowIndex::Scored> Query(const BowVector& query, size_t max_results,
                                       const std::vector<uint32_t>* among,
                                       const Deadline& deadline = Deadline(),
-                                      bool* stopped = nullptr) const;
+                                      bool* stopped = nullptr,
+                                      const uint8_t* excluded = nullptr) const;
   // The same for `among`, scoring each of them in full instead of walking
   // the inverted file; Query does this when `among` is a small share of the
   // database (a cluster and its neighbours).
   std::vector<BowIndex::Scored> ScoreEach(const BowVector& query, size_t max_results,
-                                          const std::vector<uint32_t>& among) const;
+                                          const std::vector<uint32_t>& among,
+                                          const uint8_t* excluded = nullptr) const;
 
  private:
   // `among` smaller than size() / this is scored keyframe by keyframe.

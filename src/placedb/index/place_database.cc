@@ -1,10 +1,16 @@
 #include "placedb/index/place_database.h"
 
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <chrono>
 #include <filesystem>
 #include <mutex>
+#include <thread>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <shared_mutex>
+#include <unordered_set>
 
 #include "placedb/util/check.h"
 #include "placedb/util/fair_shared_mutex.h"
@@ -23,6 +29,8 @@ std::string OpenOptions::Check() const {
 }
 
 struct PlaceDatabase::Impl {
+  ~Impl();
+
   std::string dir;
   Database db;
   BuildOptions build;
@@ -34,15 +42,26 @@ struct PlaceDatabase::Impl {
   ClusterSet clusters;
   // One candidate's cost in recent queries under a deadline.
   mutable CandidateCost candidate_cost;
-  // Online mapping. Queries hold `state` shared while they run; a writer
-  // holds it exclusively only to publish a prepared change. Writers take
-  // `writer` first, one at a time.
+  // Online mapping. Queries and Views hold `state` shared; a writer holds
+  // it exclusively only to publish a prepared change. Writers take `writer`
+  // first, one at a time; everything below `state` changes only under both.
   mutable FairSharedMutex state;
   std::mutex writer;
-  std::vector<char> removed;  // per keyframe index
+  std::vector<uint8_t> removed;  // per keyframe index, 1 = removed
   size_t num_removed = 0;
   size_t pending = 0;
+  // Held (under `writer`) from the first change until Save: no other
+  // process changes the folder meanwhile, nor sweeps the PNGs of additions
+  // not yet saved.
+  std::unique_ptr<DirectoryLock> folder_lock;
+  // PNGs written by additions not yet saved (removed if never saved).
+  std::vector<std::string> unsaved_images;
 };
+
+PlaceDatabase::Impl::~Impl() {
+  std::error_code ignore;
+  for (const std::string& name : unsaved_images) fs::remove(fs::path(dir) / name, ignore);
+}
 
 namespace {
 
@@ -81,6 +100,54 @@ std::optional<BowIndex> OpenBowIndex(const std::string& dir, const Database& db,
     return BowIndex::Build(vocabulary, db, build.bow, pool, nullptr);
   }
   return BowIndex::FromMapped(map(bow_name), (fs::path(dir) / bow_name).string(), vocabulary, db);
+}
+
+// Removes what killed writers left in the database folder `dir`, whose
+// current generation is `db` (the whole database): temporary files of
+// processes that are gone, keyframe and bag-of-words files the manifest does
+// not name, PNGs in images/ that no keyframe names. The caller holds the
+// folder's lock. Best effort: an error (a read-only folder) skips a file.
+void SweepDebris(const std::string& dir, const Database& db) {
+  std::error_code ec;
+  size_t swept = SweepTempFiles(dir) + SweepTempFiles((fs::path(dir) / "images").string());
+  std::string bow_name;
+  const nlohmann::json& manifest = db.info();
+  if (manifest.contains("index") && manifest["index"].is_object()) {
+    const auto it = manifest["index"].find("bow");
+    if (it != manifest["index"].end() && it->is_string()) bow_name = it->get<std::string>();
+  }
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    const bool stale_keyframes = (Database::IsKeyframesFileName(name) &&
+                                  name != db.keyframes_file()) ||
+                                 name == "keyframes.writing.bin";
+    const bool stale_bow = IsBowIndexFileName(name) && name != bow_name;
+    std::error_code type_ec;
+    if ((stale_keyframes || stale_bow) && it->is_regular_file(type_ec) &&
+        !it->is_symlink(type_ec)) {
+      std::error_code remove_ec;
+      swept += fs::remove(it->path(), remove_ec) ? 1 : 0;
+    }
+  }
+  const fs::path images = fs::path(dir) / "images";
+  if (fs::is_directory(images, ec)) {
+    std::unordered_set<std::string> named;
+    named.reserve(db.size());
+    for (const Keyframe& k : db.keyframes()) {
+      if (!k.image_file.empty()) named.insert(fs::path(k.image_file).filename().string());
+    }
+    for (fs::directory_iterator it(images, ec), end; !ec && it != end; it.increment(ec)) {
+      const std::string name = it->path().filename().string();
+      std::error_code type_ec;
+      if (name.size() < 5 || name.compare(name.size() - 4, 4, ".png") != 0 ||
+          named.count(name) != 0 || !it->is_regular_file(type_ec) || it->is_symlink(type_ec)) {
+        continue;
+      }
+      std::error_code remove_ec;
+      swept += fs::remove(it->path(), remove_ec) ? 1 : 0;
+    }
+  }
+  if (swept > 0) spdlog::info("{}: removed {} files left by writers that did not finish", dir, swept);
 }
 
 }  // namespace
@@ -123,30 +190,71 @@ PlaceDatabase PlaceDatabase::Open(const std::string& dir, const OpenOptions& opt
   if (bow) impl->bow.emplace(std::move(*bow));
   impl->clusters = ClusterSet::Make(db, options.clusters);
   impl->removed.assign(db.size(), 0);
+  // Debris of killed writers goes, unless another process is changing the
+  // database (its files in progress are not debris) or we may not write.
+  if (db.subset().all() && ::access(dir.c_str(), W_OK) == 0) {
+    if (const std::unique_ptr<DirectoryLock> lock = DirectoryLock::TryLock(dir)) {
+      SweepDebris(dir, db);
+    }
+  }
   return PlaceDatabase(std::move(impl));
 }
 
 const std::string& PlaceDatabase::directory() const { return impl_->dir; }
-const Database& PlaceDatabase::database() const { return impl_->db; }
-const nlohmann::json& PlaceDatabase::manifest() const { return impl_->db.info(); }
 const BuildOptions& PlaceDatabase::build_options() const { return impl_->build; }
 const ExtractorOptions& PlaceDatabase::extractor_options() const { return impl_->build.features; }
 FeatureType PlaceDatabase::feature_type() const { return impl_->db.feature_type(); }
+ThreadPool* PlaceDatabase::pool() const { return impl_->pool.get(); }
+
+nlohmann::json PlaceDatabase::manifest() const {
+  std::shared_lock<FairSharedMutex> lock(impl_->state);
+  return impl_->db.info();
+}
+
 size_t PlaceDatabase::size() const {
   std::shared_lock<FairSharedMutex> lock(impl_->state);
   return impl_->db.size() - impl_->num_removed;
 }
-ThreadPool* PlaceDatabase::pool() const { return impl_->pool.get(); }
-const GrowingBowIndex* PlaceDatabase::bow_index() const {
-  return impl_->bow ? &*impl_->bow : nullptr;
-}
-const ClusterSet& PlaceDatabase::clusters() const { return impl_->clusters; }
 
-const Keyframe* PlaceDatabase::FindKeyframe(int32_t id) const {
+std::optional<Keyframe> PlaceDatabase::FindKeyframe(int32_t id) const {
   std::shared_lock<FairSharedMutex> lock(impl_->state);
   const int index = impl_->db.IndexOfId(id);
-  if (index < 0 || impl_->removed[static_cast<size_t>(index)]) return nullptr;
-  return &impl_->db.keyframe(static_cast<size_t>(index));
+  if (index < 0 || impl_->removed[static_cast<size_t>(index)]) return std::nullopt;
+  return impl_->db.keyframe(static_cast<size_t>(index));
+}
+
+std::vector<int32_t> PlaceDatabase::keyframe_ids() const {
+  std::shared_lock<FairSharedMutex> lock(impl_->state);
+  std::vector<int32_t> ids;
+  ids.reserve(impl_->db.size() - impl_->num_removed);
+  for (size_t i = 0; i < impl_->db.size(); ++i) {
+    if (!impl_->removed[i]) ids.push_back(impl_->db.keyframe(i).id);
+  }
+  return ids;
+}
+
+FeatureSet PlaceDatabase::KeyframeFeatures(int32_t id) const {
+  std::shared_lock<FairSharedMutex> lock(impl_->state);
+  const int index = impl_->db.IndexOfId(id);
+  if (index < 0 || impl_->removed[static_cast<size_t>(index)]) {
+    PLACEDB_THROW_INVALID("no keyframe ", id, " in the database ", impl_->dir);
+  }
+  return impl_->db.Features(static_cast<size_t>(index));
+}
+
+const std::vector<uint8_t>* PlaceDatabase::View::excluded() const {
+  return num_removed_ > 0 ? removed_ : nullptr;
+}
+
+PlaceDatabase::View PlaceDatabase::Read() const {
+  View view;
+  view.lock_ = std::shared_lock<FairSharedMutex>(impl_->state);
+  view.db_ = &impl_->db;
+  view.bow_ = impl_->bow ? &*impl_->bow : nullptr;
+  view.clusters_ = &impl_->clusters;
+  view.removed_ = &impl_->removed;
+  view.num_removed_ = impl_->num_removed;
+  return view;
 }
 
 std::string PlaceDatabase::StoredImagePath(const Keyframe& keyframe) const {
@@ -167,29 +275,39 @@ FeatureSet PlaceDatabase::Extract(const cv::Mat& image) const {
 QueryResult PlaceDatabase::Run(const FeatureSet& features, const std::vector<uint32_t>* among,
                                const QueryOptions& options, double extract_ms) const {
   PLACEDB_CHECK_OPTIONS(options);
-  std::shared_lock<FairSharedMutex> lock(impl_->state);
+  // The deadline's clock starts before the wait for a writer to publish.
+  const Timer clock;
+  std::shared_lock<FairSharedMutex> lock(impl_->state, std::defer_lock);
+  if (options.deadline_ms > 0.0) {
+    const auto until = std::chrono::steady_clock::now() +
+                       std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                           std::chrono::duration<double, std::milli>(options.deadline_ms));
+    if (!lock.try_lock_until(until)) {
+      QueryResult late;
+      late.num_query_features = static_cast<int>(features.size());
+      late.deadline_reached = true;
+      late.search = RetrievalMethodName(options.retrieval.method);
+      late.times.extract_ms = extract_ms;
+      late.times.total_ms = clock.ElapsedMs() + extract_ms;
+      return late;
+    }
+  } else {
+    lock.lock();
+  }
   QueryContext context;
-  context.bow = bow_index();
+  context.bow = impl_->bow ? &*impl_->bow : nullptr;
   context.clusters = &impl_->clusters;
   context.among = among;
-  // Removed keyframes (online mapping) are left out.
-  std::vector<uint32_t> kept;
+  // Removed keyframes (online mapping) are left out by a mask each stage
+  // tests: no per-query work for them.
   if (impl_->num_removed > 0) {
-    const std::vector<char>& removed = impl_->removed;
-    if (among != nullptr) {
-      for (const uint32_t i : *among) {
-        if (i >= removed.size() || !removed[i]) kept.push_back(i);
-      }
-    } else {
-      for (size_t i = 0; i < removed.size(); ++i) {
-        if (!removed[i]) kept.push_back(static_cast<uint32_t>(i));
-      }
-    }
-    context.among = &kept;
+    context.excluded = &impl_->removed;
+    context.num_excluded = impl_->num_removed;
   }
   context.pool = impl_->pool.get();
   context.image_dir = impl_->dir;
   context.candidate_cost = &impl_->candidate_cost;
+  context.clock = &clock;
   QueryResult r = QueryDatabase(impl_->db, features, options, context);
   r.times.extract_ms = extract_ms;
   r.times.total_ms += extract_ms;
@@ -242,6 +360,41 @@ void RequireWholeDatabase(const Database& db, const char* what) {
 }
 }  // namespace
 
+// Takes the folder's lock for this session's changes (once), and checks that
+// the folder still holds the generation this session read.
+void PlaceDatabase::BeginChange() {
+  Impl& m = *impl_;
+  if (m.folder_lock) return;
+  // A reader that opened the database may hold the lock for a moment while
+  // it sweeps debris: wait up to 1 s before deciding another writer has it.
+  std::unique_ptr<DirectoryLock> lock = DirectoryLock::TryLock(m.dir);
+  for (int attempt = 0; !lock && attempt < 20; ++attempt) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    lock = DirectoryLock::TryLock(m.dir);
+  }
+  if (!lock) {
+    PLACEDB_THROW_RUNTIME("the database ", m.dir,
+                          " is being changed by another process or session; one writer at a "
+                          "time (try again when it has saved)");
+  }
+  const std::string manifest_path = (fs::path(m.dir) / Database::kManifestFile).string();
+  std::string text;
+  bool same = false;
+  try {
+    text = ReadFileToString(manifest_path);
+    const nlohmann::json manifest = nlohmann::json::parse(text);
+    same = manifest.at("files").at("keyframes").get<std::string>() == m.db.keyframes_file();
+  } catch (const std::exception&) {
+    same = false;
+  }
+  if (!same) {
+    PLACEDB_THROW_RUNTIME("the database ", m.dir,
+                          " was rewritten on disk since this session opened it; open it again "
+                          "to change it");
+  }
+  m.folder_lock = std::move(lock);
+}
+
 void PlaceDatabase::Add(const Frame& frame, const cv::Mat& image) {
   RequireWholeDatabase(impl_->db, "add keyframes");
   if (image.empty()) PLACEDB_THROW_INVALID("the image of keyframe ", frame.id, " is empty");
@@ -249,30 +402,50 @@ void PlaceDatabase::Add(const Frame& frame, const cv::Mat& image) {
       (image.channels() != 1 && image.channels() != 3 && image.channels() != 4)) {
     PLACEDB_THROW_INVALID("the image of keyframe ", frame.id, " must be 8-bit gray, BGR or BGRA");
   }
+  if (frame.id < 1) PLACEDB_THROW_INVALID("keyframe id ", frame.id, " must be at least 1");
+  // The slow part, with no lock held.
   cv::Mat bgr = image;
   if (image.channels() == 1) cv::cvtColor(image, bgr, cv::COLOR_GRAY2BGR);
   if (image.channels() == 4) cv::cvtColor(image, bgr, cv::COLOR_BGRA2BGR);
   ProcessedFrame processed = ProcessFrame(frame, bgr, impl_->build, *impl_->extractor);
+  std::vector<uint8_t> png;
   if (impl_->build.store_images) {
-    if (impl_->db.IndexOfId(frame.id) >= 0)
-      PLACEDB_THROW_INVALID("keyframe id ", frame.id, " is taken");
-    char name[32];
-    std::snprintf(name, sizeof(name), "images/%06d.png", frame.id);
-    std::vector<uint8_t> png;
     cv::imencode(".png", processed.stored_image, png,
                  {cv::IMWRITE_PNG_COMPRESSION, impl_->build.png_compression});
-    fs::create_directories(fs::path(impl_->dir) / "images");
-    WriteFileAtomic((fs::path(impl_->dir) / name).string(),
+  }
+  Impl& m = *impl_;
+  std::lock_guard<std::mutex> writer(m.writer);
+  if (m.db.IndexOfId(frame.id) >= 0) PLACEDB_THROW_INVALID("keyframe id ", frame.id, " is taken");
+  BeginChange();
+  std::string written;
+  if (m.build.store_images) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "images/%06d.png", frame.id);
+    fs::create_directories(fs::path(m.dir) / "images");
+    WriteFileAtomic((fs::path(m.dir) / name).string(),
                     std::string(reinterpret_cast<const char*>(png.data()), png.size()));
+    written = name;
     processed.keyframe.image_file = name;
   }
-  Add(std::move(processed.keyframe), processed.features);
+  try {
+    AddLocked(std::move(processed.keyframe), processed.features);
+  } catch (...) {
+    std::error_code ignore;
+    if (!written.empty()) fs::remove(fs::path(m.dir) / written, ignore);
+    throw;
+  }
+  if (!written.empty()) m.unsaved_images.push_back(written);
 }
 
 void PlaceDatabase::Add(Keyframe keyframe, const FeatureSet& features) {
+  RequireWholeDatabase(impl_->db, "add keyframes");
+  std::lock_guard<std::mutex> writer(impl_->writer);
+  BeginChange();
+  AddLocked(std::move(keyframe), features);
+}
+
+void PlaceDatabase::AddLocked(Keyframe keyframe, const FeatureSet& features) {
   Impl& m = *impl_;
-  RequireWholeDatabase(m.db, "add keyframes");
-  std::lock_guard<std::mutex> writer(m.writer);
   if (m.db.IndexOfId(keyframe.id) >= 0)
     PLACEDB_THROW_INVALID("keyframe id ", keyframe.id, " is taken");
   const std::string reason = CheckKeyframe(keyframe);
@@ -293,6 +466,10 @@ void PlaceDatabase::Add(Keyframe keyframe, const FeatureSet& features) {
     grown = m.db;  // reads only, as queries do
     grown->Reserve(2 * m.db.size() + 16, 2 * m.db.num_features() + rows + 4096);
     grown->AddKeyframe(keyframe, features);
+  } else {
+    // Checked before the readers are held: AddKeyframe below cannot fail.
+    Database probe(m.db.feature_type(), m.db.descriptor_bytes());
+    probe.AddKeyframe(keyframe, features);
   }
   {
     std::unique_lock<FairSharedMutex> publish(m.state);
@@ -315,6 +492,7 @@ bool PlaceDatabase::Remove(int32_t id) {
   std::lock_guard<std::mutex> writer(m.writer);
   const int index = m.db.IndexOfId(id);
   if (index < 0 || m.removed[static_cast<size_t>(index)]) return false;
+  BeginChange();
   std::unique_lock<FairSharedMutex> publish(m.state);
   m.removed[static_cast<size_t>(index)] = 1;
   ++m.num_removed;
@@ -331,6 +509,7 @@ void PlaceDatabase::Save() {
   Impl& m = *impl_;
   RequireWholeDatabase(m.db, "save");
   std::lock_guard<std::mutex> writer(m.writer);
+  BeginChange();
   std::vector<char> keep(m.db.size());
   std::vector<std::string> dropped_images;
   for (size_t i = 0; i < keep.size(); ++i) {
@@ -369,6 +548,11 @@ void PlaceDatabase::Save() {
   std::swap(m.removed, f.removed);
   m.num_removed = 0;
   m.pending = 0;
+  m.unsaved_images.clear();
+  publish.unlock();
+  // What killed writers left (none can be writing: we hold the lock).
+  SweepDebris(m.dir, m.db);
+  m.folder_lock.reset();
 }
 
 }  // namespace placedb

@@ -6,12 +6,31 @@
 //   placedb::QueryResult r = db.Query(cv::imread("frame.png"));
 //   if (const placedb::RankedKeyframe* best = r.best()) use(best->keyframe_id, best->pose);
 //
-// Query methods are const and thread-safe. Online mapping (Add, Remove,
-// Save) may run while queries do: a query sees the keyframes as they were
-// when it started, and an addition becomes visible all at once.
+// Thread-safety contract:
+// - Every const method may run on any number of threads at once, and at the
+//   same time as the writers Add, Remove and Save on other threads.
+// - What a method returns stays valid whatever writers do afterwards: values
+//   and copies (FindKeyframe, manifest, keyframe_ids, ...), or a View, which
+//   holds the session's read lock while it lives. A writer waits for every
+//   View and query in flight before it publishes; so a thread that holds a
+//   View must not call Add, Remove or Save (it would wait for itself), and
+//   Views are meant to be short.
+// - A query sees the keyframes as they were when it started; an addition or
+//   removal becomes visible all at once. The deadline of a query
+//   (QueryOptions::deadline_ms) starts before it waits for a writer to
+//   publish, and the wait counts against it: a query whose deadline passes
+//   while it waits returns no answer, deadline_reached set, nothing examined.
+// - Writers are serialised within a session. Across processes, one session
+//   changes a database at a time: the first Add or Remove takes the
+//   database folder's lock (flock) until Save or the session's end; another
+//   process's writer is refused with a clear error, and so is a session
+//   whose database was rewritten on disk since it opened.
+// - Moving or destroying a PlaceDatabase while other threads use it is not
+//   allowed (as for any object).
 #pragma once
 
 #include <memory>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <optional>
@@ -25,6 +44,7 @@
 #include "placedb/index/growing_bow_index.h"
 #include "placedb/index/keyframe_subset.h"
 #include "placedb/index/query.h"
+#include "placedb/util/fair_shared_mutex.h"
 
 namespace placedb {
 
@@ -52,33 +72,69 @@ class PlaceDatabase {
   // options must also agree with the stored descriptors), and creates the
   // extractor queries need. Errors: std::runtime_error for a missing or
   // damaged database, std::invalid_argument for bad options or a feature type
-  // other than options.expected_features.
+  // other than options.expected_features. Opening the whole database also
+  // sweeps the debris of killed writers (temporary files of processes that
+  // are gone, keyframe and index files the manifest does not name, PNGs no
+  // keyframe names) when no other process is changing it and the folder is
+  // writable.
   static PlaceDatabase Open(const std::string& dir, const OpenOptions& options = OpenOptions());
 
   PlaceDatabase(PlaceDatabase&&) noexcept;
   PlaceDatabase& operator=(PlaceDatabase&&) noexcept;
   ~PlaceDatabase();
 
+  // Fixed for the session's life (Save does not change them).
   const std::string& directory() const;
-  const Database& database() const;
-  // The manifest: every build setting, counts, sizes, creation info.
-  const nlohmann::json& manifest() const;
   const BuildOptions& build_options() const;
   const ExtractorOptions& extractor_options() const;
   FeatureType feature_type() const;
+  // The pool queries run on (nullptr for one thread); it lives as long as
+  // the session.
+  ThreadPool* pool() const;
+
+  // Snapshots: copies taken under the read lock, valid forever.
+  // The manifest: every build setting, counts, sizes, creation info.
+  nlohmann::json manifest() const;
+  // Keyframes answering now (removed ones left out).
   size_t size() const;
   bool empty() const { return size() == 0; }
-  // The keyframe with this id, or nullptr.
-  const Keyframe* FindKeyframe(int32_t id) const;
+  // The keyframe with this id (a copy), or nullopt (none, or removed).
+  std::optional<Keyframe> FindKeyframe(int32_t id) const;
+  // The ids of the keyframes answering now, in storage order.
+  std::vector<int32_t> keyframe_ids() const;
+  // The features of keyframe `id` (a copy); std::invalid_argument when
+  // there is no such keyframe.
+  FeatureSet KeyframeFeatures(int32_t id) const;
   // Path of a keyframe's stored PNG ("" when the database keeps none).
   std::string StoredImagePath(const Keyframe& keyframe) const;
-  // The pool queries run on (nullptr for one thread).
-  ThreadPool* pool() const;
-  // The bag-of-words index (nullptr when the database was built without
-  // one: then bow search is an error naming the rebuild flag).
-  const GrowingBowIndex* bow_index() const;
-  // The spatial-locality clusters of the opened keyframes.
-  const ClusterSet& clusters() const;
+
+  // A consistent view of the session's storage, for code that needs the
+  // Database itself (benchmarks, baselines, the query stages run by hand).
+  // It holds the read lock while it lives: see the contract above. The
+  // database may include removed keyframes: removed(i) tells them.
+  class View {
+   public:
+    const Database& database() const { return *db_; }
+    // The bag-of-words index (nullptr when the database was built without
+    // one).
+    const GrowingBowIndex* bow_index() const { return bow_; }
+    // The spatial-locality clusters of the opened keyframes.
+    const ClusterSet& clusters() const { return *clusters_; }
+    // Whether keyframe index `index` was removed (online, not yet saved).
+    bool removed(size_t index) const { return (*removed_)[index] != 0; }
+    // The excluded mask QueryContext takes (nullptr when none is removed).
+    const std::vector<uint8_t>* excluded() const;
+
+   private:
+    friend class PlaceDatabase;
+    std::shared_lock<FairSharedMutex> lock_;
+    const Database* db_ = nullptr;
+    const GrowingBowIndex* bow_ = nullptr;
+    const ClusterSet* clusters_ = nullptr;
+    const std::vector<uint8_t>* removed_ = nullptr;
+    size_t num_removed_ = 0;
+  };
+  View Read() const;
 
   // The query features of an image, as Query(image) computes them: an 8-bit
   // gray, BGR or BGRA frame, full and uncropped. An empty image or another
@@ -91,7 +147,8 @@ class PlaceDatabase {
   // They are validated against the database (std::invalid_argument).
   QueryResult Query(const FeatureSet& features, const QueryOptions& options = QueryOptions()) const;
   // Both restricted to keyframe indices `keyframes` (a partition, a cluster,
-  // bag-of-words candidates): only those are examined.
+  // bag-of-words candidates): only those are examined. Indices are those of
+  // View::database(); removed keyframes among them are left out.
   QueryResult QueryAmong(const cv::Mat& image, const std::vector<uint32_t>& keyframes,
                          const QueryOptions& options = QueryOptions()) const;
   QueryResult QueryAmong(const FeatureSet& features, const std::vector<uint32_t>& keyframes,
@@ -123,6 +180,9 @@ class PlaceDatabase {
   // (the previous generation stays until the new manifest is in place),
   // rebuilding the bag-of-words index with the same vocabulary. The session
   // then reads the saved generation: it answers as a reopened database does.
+  // Debris of earlier crashes (temporary files, files no manifest names,
+  // PNGs no keyframe names) is swept. Refused (std::invalid_argument) for a
+  // session opened on a subset: that would replace the whole database.
   void Save();
 
  private:
@@ -130,6 +190,8 @@ class PlaceDatabase {
   explicit PlaceDatabase(std::unique_ptr<Impl> impl);
   QueryResult Run(const FeatureSet& features, const std::vector<uint32_t>* among,
                   const QueryOptions& options, double extract_ms) const;
+  void AddLocked(Keyframe keyframe, const FeatureSet& features);
+  void BeginChange();
   std::unique_ptr<Impl> impl_;
 };
 

@@ -68,10 +68,10 @@ TEST_F(PlaceDatabaseTest, OpenAndQuery) {
   EXPECT_TRUE(fs::exists(r.best()->stored_image)) << r.best()->stored_image;
   EXPECT_EQ(r.best()->source, RtabmapImage(r.best()->keyframe_id));
   EXPECT_FALSE(r.best()->pose.has_value());  // image folders have no poses
-  const Keyframe* k = db.FindKeyframe(r.best()->keyframe_id);
-  ASSERT_NE(k, nullptr);
+  const std::optional<Keyframe> k = db.FindKeyframe(r.best()->keyframe_id);
+  ASSERT_TRUE(k.has_value());
   EXPECT_EQ(db.StoredImagePath(*k), r.best()->stored_image);
-  EXPECT_EQ(db.FindKeyframe(41), nullptr);
+  EXPECT_FALSE(db.FindKeyframe(41));
   const QueryResult same = db.Query(db.Extract(image));
   EXPECT_EQ(same.ranked, r.ranked);
   EXPECT_EQ(same.times.extract_ms, 0.0);
@@ -236,8 +236,8 @@ TEST(PlaceDatabaseSmallFramesTest, UpscalingSmallFramesKeepsRecall) {
     BuildDatabase(train, options, dir, "rtabmap 1..40 at 160x120");
     const PlaceDatabase db = PlaceDatabase::Open(dir);
     EXPECT_EQ(db.extractor_options().upscale_below, options.features.upscale_below);
-    EXPECT_EQ(db.database().keyframe(0).original_size, cv::Size(160, 120));
-    features[upscale] = db.database().num_features();
+    EXPECT_EQ(db.Read().database().keyframe(0).original_size, cv::Size(160, 120));
+    features[upscale] = db.Read().database().num_features();
     for (const Frame& q : queries) {
       const QueryResult r = db.Query(LoadFrameImage(q));
       if (!r.ranked.empty() && truth[q.id].count(r.ranked[0].keyframe_id)) ++correct[upscale];

@@ -196,6 +196,15 @@ void ValidateQueryFeatures(const FeatureSet& features, const Database& db) {
     if (!std::isfinite(p.x) || !std::isfinite(p.y))
       PLACEDB_THROW_INVALID("query keypoint ", i, " has a non-finite position");
   }
+  // The query image's size is not known here: positions are bounded by the
+  // largest image side.
+  const std::string bad =
+      CheckKeypoints(features.keypoints.data(), features.keypoints.size(), cv::Size());
+  if (!bad.empty()) PLACEDB_THROW_INVALID("the query ", bad);
+  if (db.feature_type() == FeatureType::kSurf &&
+      !AllFinite(d.ptr<float>(0), features.keypoints.size() * static_cast<size_t>(d.cols))) {
+    PLACEDB_THROW_INVALID("the query has a SURF descriptor value that is not finite");
+  }
 }
 
 namespace {
@@ -486,7 +495,15 @@ QueryResult RunStages(const Database& db, const FeatureSet& query, const QueryOp
                       const Retriever& retriever, const Timer& clock) {
   QueryResult result;
   result.num_query_features = static_cast<int>(query.size());
-  result.num_keyframes = among ? among->size() : db.size();
+  const uint8_t* excluded = context.excluded != nullptr ? context.excluded->data() : nullptr;
+  if (among == nullptr) {
+    result.num_keyframes = db.size() - (excluded != nullptr ? context.num_excluded : 0);
+  } else {
+    result.num_keyframes = among->size();
+    if (excluded != nullptr) {
+      for (const uint32_t i : *among) result.num_keyframes -= excluded[i];
+    }
+  }
   result.search = RetrievalMethodName(retriever.method());
   const Deadline deadline(clock, options.deadline_ms);
 
@@ -502,7 +519,7 @@ QueryResult RunStages(const Database& db, const FeatureSet& query, const QueryOp
       deadline.enabled() ? Deadline(clock, std::max(options.deadline_ms - reserve, 1e-9))
                          : Deadline();
   const std::vector<Candidate> candidates =
-      retriever.Retrieve(db, query, among, retrieve_deadline, &retrieve_stopped);
+      retriever.Retrieve(db, query, among, excluded, retrieve_deadline, &retrieve_stopped);
   result.times.retrieve_ms = stage.ElapsedMs();
 
   // Match and verify. SURF: the query's rows grouped by Laplacian sign,
@@ -615,7 +632,8 @@ QueryResult QueryDatabase(const Database& db, const FeatureSet& query, const Que
   PLACEDB_CHECK_OPTIONS(options);
   ValidateQueryFeatures(query, db);
   PLACEDB_CHECK(db.has_features(), "the database was opened as a keyframe table, without features");
-  const Timer clock;
+  const Timer own_clock;
+  const Timer& clock = context.clock != nullptr ? *context.clock : own_clock;
   std::vector<uint32_t> among;
   if (context.among != nullptr) {
     among = *context.among;
@@ -625,6 +643,10 @@ QueryResult QueryDatabase(const Database& db, const FeatureSet& query, const Que
       PLACEDB_THROW_INVALID("keyframe index ", among.back(), " is out of range (the database has ",
                             db.size(), " keyframes)");
     }
+  }
+  if (context.excluded != nullptr) {
+    PLACEDB_CHECK(context.excluded->size() == db.size(), "the excluded mask has ",
+                  context.excluded->size(), " entries for ", db.size(), " keyframes");
   }
   std::unique_ptr<Retriever> own_retriever;
   const Retriever* retriever = context.retriever;

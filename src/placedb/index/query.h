@@ -138,7 +138,8 @@ void from_json(const nlohmann::json& j, RankedKeyframe& r);
 
 // Throws std::invalid_argument unless `features` can be matched against `db`:
 // one descriptor row per keypoint, the database's descriptor type and width,
-// contiguous rows, finite keypoint coordinates.
+// contiguous rows, finite keypoints within the largest image (CheckKeypoints
+// with an unknown size), finite SURF descriptor values.
 void ValidateQueryFeatures(const FeatureSet& features, const Database& db);
 
 // What one candidate's match and verify cost in recent queries under a
@@ -164,6 +165,12 @@ struct QueryContext {
   // Restriction to these keyframe indices (a partition, a cluster, BoW
   // candidates); nullptr: all. Out-of-range indices are invalid input.
   const std::vector<uint32_t>* among = nullptr;
+  // Keyframes left out of every stage (removed online): one byte per
+  // keyframe of the database, 1 = left out, tested per candidate (and per
+  // posting by the bag-of-words scoring); nullptr: none. `num_excluded` is
+  // how many are set. The answer equals the one of a database without them.
+  const std::vector<uint8_t>* excluded = nullptr;
+  size_t num_excluded = 0;
   // Matching and verification spread over this pool; nullptr: this thread.
   ThreadPool* pool = nullptr;
   // The database's bag-of-words index (bow search; cluster search uses it
@@ -177,6 +184,10 @@ struct QueryContext {
   // the retrieve stage leaves free before the deadline (and which the query
   // updates); nullptr: none is left.
   CandidateCost* candidate_cost = nullptr;
+  // The query's clock, when it started before QueryDatabase (a session
+  // starts it before waiting for its lock): the deadline and total_ms count
+  // from it. nullptr: they count from QueryDatabase's start.
+  const Timer* clock = nullptr;
 };
 
 // Runs retrieve -> match -> verify -> decide for already-extracted features.

@@ -46,15 +46,19 @@ class ExhaustiveRetriever : public Retriever {
   RetrievalMethod method() const override { return RetrievalMethod::kExhaustive; }
 
   std::vector<Candidate> Retrieve(const Database& db, const FeatureSet& /*query*/,
-                                  const std::vector<uint32_t>* among, const Deadline& /*deadline*/,
-                                  bool* /*stopped*/) const override {
+                                  const std::vector<uint32_t>* among, const uint8_t* excluded,
+                                  const Deadline& /*deadline*/, bool* /*stopped*/) const override {
     std::vector<Candidate> out;
     if (among != nullptr) {
       out.reserve(among->size());
-      for (const uint32_t i : *among) out.push_back({i, 0.0});
+      for (const uint32_t i : *among) {
+        if (excluded == nullptr || !excluded[i]) out.push_back({i, 0.0});
+      }
     } else {
       out.reserve(db.size());
-      for (size_t i = 0; i < db.size(); ++i) out.push_back({static_cast<uint32_t>(i), 0.0});
+      for (size_t i = 0; i < db.size(); ++i) {
+        if (excluded == nullptr || !excluded[i]) out.push_back({static_cast<uint32_t>(i), 0.0});
+      }
     }
     return out;
   }
@@ -74,8 +78,8 @@ class BowRetriever : public Retriever {
   RetrievalMethod method() const override { return method_; }
 
   std::vector<Candidate> Retrieve(const Database& db, const FeatureSet& query,
-                                  const std::vector<uint32_t>* among, const Deadline& deadline,
-                                  bool* stopped) const override {
+                                  const std::vector<uint32_t>* among, const uint8_t* excluded,
+                                  const Deadline& deadline, bool* stopped) const override {
     PLACEDB_CHECK(index_.size() == db.size(), "the bag-of-words index has ", index_.size(),
                   " keyframes but the database ", db.size());
     std::vector<int8_t> laplacian;
@@ -85,7 +89,7 @@ class BowRetriever : public Retriever {
     const BowVector words = index_.Transform(block, guided ? &nodes : nullptr);
     bool late = false;
     std::vector<Candidate> out;
-    for (const BowIndex::Scored& s : index_.Query(words, candidates_, among, deadline, &late))
+    for (const BowIndex::Scored& s : index_.Query(words, candidates_, among, deadline, &late, excluded))
       out.push_back({s.index, s.score});
     if (stopped != nullptr) *stopped = late;
     // Out of time, the bag-of-words order stands.

@@ -69,10 +69,13 @@ class Retriever {
   // The keyframes of `db` to examine for `query`, best prior first. With
   // `among` (sorted, unique indices < db.size()), only those may be returned.
   // Once `deadline` has passed a retriever may stop early with the
-  // candidates found so far and set *stopped.
+  // candidates found so far and set *stopped. Keyframes marked in
+  // `excluded` (nullptr: none; else one byte per keyframe of `db`, 1 = left
+  // out: removed online) are never returned.
   virtual std::vector<Candidate> Retrieve(const Database& db, const FeatureSet& query,
                                           const std::vector<uint32_t>* among,
-                                          const Deadline& deadline, bool* stopped) const = 0;
+                                          const uint8_t* excluded, const Deadline& deadline,
+                                          bool* stopped) const = 0;
 
   // The retriever for `options` over `db`. bow needs `bow`, the database's
   // index (std::invalid_argument naming the fix when it is nullptr). cluster

@@ -177,23 +177,23 @@ struct KeyframeInfo {
   size_t num_features = 0;
 };
 
-int IndexOf(const PlaceDatabase& db, int32_t id) {
-  const int index = db.FindKeyframe(id) ? db.database().IndexOfId(id) : -1;
-  if (index < 0) throw py::key_error(fmt::format("no keyframe with id {} in the database", id));
-  return index;
+void RequireKeyframe(const PlaceDatabase& db, int32_t id) {
+  if (!db.FindKeyframe(id))
+    throw py::key_error(fmt::format("no keyframe with id {} in the database", id));
 }
 
 KeyframeInfo GetKeyframe(const PlaceDatabase& db, int32_t id) {
-  const int index = IndexOf(db, id);
+  const std::optional<Keyframe> found = db.FindKeyframe(id);
+  if (!found) throw py::key_error(fmt::format("no keyframe with id {} in the database", id));
   KeyframeInfo k;
-  k.keyframe = db.database().keyframe(static_cast<size_t>(index));
+  k.keyframe = *found;
   k.stored_image = db.StoredImagePath(k.keyframe);
-  k.num_features = db.database().FeatureCount(static_cast<size_t>(index));
+  k.num_features = db.KeyframeFeatures(id).size();
   return k;
 }
 
 int DescriptorColumns(const PlaceDatabase& db) {
-  const int bytes = db.database().descriptor_bytes();
+  const int bytes = db.Read().database().descriptor_bytes();
   return db.feature_type() == FeatureType::kOrb ? bytes : bytes / static_cast<int>(sizeof(float));
 }
 
@@ -337,9 +337,11 @@ py::dict EvaluateDatabase(const PlaceDatabase& db, const OptionalPath& images,
   return FromJson(EvalReportToJson(report)).cast<py::dict>();
 }
 
-py::array ReadImage(const fs::path& path) {
+py::array ReadImage(const fs::path& path, int64_t max_image_pixels) {
   Frame frame;
   frame.image_path = path.string();
+  frame.read.max_pixels = max_image_pixels;
+  ThrowIfInvalid(frame.read.Check(), "max_image_pixels");
   cv::Mat image;
   {
     py::gil_scoped_release release;
@@ -686,22 +688,17 @@ PYBIND11_MODULE(placedb, m) {
           "the manifest (every build setting, counts, sizes, creation info), a dict")
       .def_property_readonly(
           "keyframe_ids",
-          [](const PlaceDatabase& db) {
-            std::vector<int32_t> ids;
-            for (const Keyframe& k : db.database().keyframes()) ids.push_back(k.id);
-            return ids;
-          },
+          [](const PlaceDatabase& db) { return db.keyframe_ids(); },
           "ids of the keyframes opened, in file order")
       .def("keyframe", &GetKeyframe, py::arg("id"),
            "The keyframe with this id, a Keyframe; KeyError when there is none.")
       .def("__contains__",
-           [](const PlaceDatabase& db, int32_t id) { return db.FindKeyframe(id) != nullptr; })
+           [](const PlaceDatabase& db, int32_t id) { return db.FindKeyframe(id).has_value(); })
       .def(
           "keyframe_features",
           [](const PlaceDatabase& db, int32_t id) {
-            const int index = IndexOf(db, id);
-            return FromFeatures(db.database().Features(static_cast<size_t>(index)),
-                                DescriptorColumns(db));
+            RequireKeyframe(db, id);
+            return FromFeatures(db.KeyframeFeatures(id), DescriptorColumns(db));
           },
           py::arg("id"),
           "The stored features of keyframe `id` as (keypoints Nx7 float32, descriptors NxD), in "
@@ -760,9 +757,11 @@ PYBIND11_MODULE(placedb, m) {
         py::arg("seed") = eval_defaults.seed, py::arg("sequence") = eval_defaults.sequence,
         py::arg("progress") = false, fmt::format(fmt::runtime(kEvaluateDoc)).c_str());
 
-  m.def("read_image", &ReadImage, py::arg("path"),
-        "Reads an image file as an HxWx3 uint8 BGR array (OpenCV's imread, as build and evaluate "
-        "read frames); ValueError when it cannot be read.");
+  m.def("read_image", &ReadImage, py::arg("path"), py::kw_only(),
+        py::arg("max_image_pixels") = kDefaultMaxImagePixels,
+        "Reads an image file as an HxWx3 uint8 BGR array (decoded by OpenCV, as build and "
+        "evaluate read frames), after its header is checked against max_image_pixels (width x "
+        "height, [1, 2^30]); ValueError when it cannot be read or is larger.");
   m.def(
       "query_option_defaults", []() { return OptionValues(QuerySpecs(), QueryOptions()); },
       "The query options (keywords of query(), query_features(), evaluate()) and their "

@@ -6,7 +6,7 @@ DevTools Protocol on --remote-debugging-pipe (fd 3 = commands to Chromium,
 fd 4 = responses and events from it, each message JSON ended by a NUL byte),
 and checks that:
 
-  1. the page loads (load event) within --timeout seconds;
+  1. the page loads (load event) within --timeout seconds of being opened;
   2. nothing is logged as an error: uncaught exceptions, console.error /
      console.assert, and Log entries of level error (failed resource loads);
   3. the page is self-contained: every request is data:, about:, blob: or
@@ -18,6 +18,15 @@ and checks that:
 
 and optionally saves a full-page screenshot (--screenshot) and the DOM as it
 stands after loading (--dom-dump).
+
+Three limits, each a parameter, so that a slow start of Chromium on a busy
+machine is never mistaken for a page that does not load:
+  --startup-timeout  Chromium starts and opens a blank page (default 60 s);
+  --timeout          the page loads, with its images, counted from the moment
+                     it is opened, after start-up (default 60 s);
+  --answer-timeout   each DevTools answer after the load: scripts evaluated in
+                     the page, the screenshot (default 60 s).
+Whatever hangs, a watchdog ends the run after the sum of the limits.
 
 Exit status: 0 when every check passes, 1 otherwise (one "FAIL: ..." line
 per problem), also when the file or Chromium is missing or time runs out;
@@ -44,6 +53,7 @@ import urllib.request
 DEFAULT_CHROMIUM = "/usr/bin/chromium"
 FIGURE_SELECTOR = "figure.placedb-figure"
 ALLOWED_SCHEMES = ("data", "about", "blob")
+STRAY_LIMIT = 60.0  # seconds to wait for killed processes to be gone
 
 # Flags needed on this machine:
 # without the background-networking ones Chromium makes connections of its
@@ -213,10 +223,14 @@ class Chromium:
         return self._next_id
 
     def call(self, method, params=None, session=None, deadline=None,
-             timeout=30.0):
-        """Send a command and wait for its answer; return its result."""
+             limit="30s"):
+        """Send a command and wait for its answer; return its result.
+
+        deadline is a time.monotonic() value; limit names it in the error
+        (which option ran out).
+        """
         if deadline is None:
-            deadline = time.monotonic() + timeout
+            deadline = time.monotonic() + 30.0
         cid = self.send(method, params, session)
         while cid not in self._responses:
             if self._closed:
@@ -224,8 +238,8 @@ class Chromium:
             if not self._take(deadline):
                 hint = " (is a script on the page stuck?)" \
                     if method == "Runtime.evaluate" else ""
-                raise CheckError("timeout: Chromium did not answer %s in "
-                                 "time%s" % (method, hint))
+                raise CheckError("timeout: Chromium did not answer %s "
+                                 "within %s%s" % (method, limit, hint))
         resp = self._responses.pop(cid)
         if "error" in resp:
             raise CheckError("%s failed: %s" % (
@@ -279,7 +293,11 @@ def kill_strays(marker):
     """
     marker = marker.encode()
     me = os.getpid()
-    for _ in range(20):
+    # Until none is left: a killed process leaves /proc (or becomes a zombie
+    # with an empty command line) as soon as the kernel has torn it down,
+    # which takes longer on a busy machine; the limit only guards a hang.
+    until = time.monotonic() + STRAY_LIMIT
+    while True:
         found = False
         for name in os.listdir("/proc"):
             if not name.isdigit() or int(name) == me:
@@ -295,7 +313,17 @@ def kill_strays(marker):
                     os.kill(int(name), signal.SIGKILL)
                 except OSError:
                     pass
-        if not found:
+        if not found or time.monotonic() >= until:
+            return
+        time.sleep(0.05)
+
+
+def remove_tree(path):
+    """Remove a folder; again if a dying process still wrote into it."""
+    until = time.monotonic() + STRAY_LIMIT
+    while True:
+        shutil.rmtree(path, ignore_errors=True)
+        if not os.path.lexists(path) or time.monotonic() >= until:
             return
         time.sleep(0.05)
 
@@ -445,15 +473,13 @@ def check_figures(figures, expect, min_figures, fail):
 def run_check(args, html, tmp, holder):
     folder = os.path.dirname(html)
     url = urllib.parse.urljoin("file:", urllib.request.pathname2url(html))
-    start = time.monotonic()
-    load_deadline = start + args.timeout
     browser = Chromium(args.chromium, args.width, args.height,
                        os.path.join(tmp, "chromium.log"),
                        os.path.join(tmp, "profile"))
     holder["proc"] = browser.proc
     report = Report(folder)
     try:
-        return drive(browser, report, args, url, start, load_deadline)
+        return drive(browser, report, args, url)
     except CheckError as e:
         log = tail(os.path.join(tmp, "chromium.log"))
         if log and browser.proc.poll() is not None:
@@ -476,15 +502,19 @@ def tail(path, limit=300):
     return short(lines[-1], limit) if lines else ""
 
 
-def drive(browser, report, args, url, start, load_deadline):
-    # Chromium needs a moment to start; its first answer says it is up.
-    step = lambda: min(load_deadline, time.monotonic() + 30)
-    version = browser.call("Browser.getVersion", deadline=load_deadline)
+def drive(browser, report, args, url):
+    # Start-up: Chromium starts, opens a blank page and is attached to it,
+    # all within --startup-timeout (its first answer says it is up).  The
+    # page's own --timeout starts only when the page is opened.
+    started = time.monotonic()
+    up = started + args.startup_timeout
+    up_limit = "--startup-timeout (%gs)" % args.startup_timeout
+    version = browser.call("Browser.getVersion", deadline=up, limit=up_limit)
     target = browser.call("Target.createTarget", {"url": "about:blank"},
-                          deadline=step())["targetId"]
+                          deadline=up, limit=up_limit)["targetId"]
     session = browser.call("Target.attachToTarget",
                            {"targetId": target, "flatten": True},
-                           deadline=step())["sessionId"]
+                           deadline=up, limit=up_limit)["sessionId"]
     report.sessions.add(session)
     page_sessions = {session}
     state = {"loaded": False}
@@ -505,20 +535,24 @@ def drive(browser, report, args, url, start, load_deadline):
             browser.send("Runtime.runIfWaitingForDebugger", session=child)
     browser.on_event = follow
     for domain in ("Page", "Runtime", "Log", "Network"):
-        browser.call(domain + ".enable", session=session, deadline=step())
+        browser.call(domain + ".enable", session=session, deadline=up,
+                     limit=up_limit)
     browser.call("Target.setAutoAttach", {
         "autoAttach": True, "waitForDebuggerOnStart": True,
-        "flatten": True}, session=session, deadline=step())
+        "flatten": True}, session=session, deadline=up, limit=up_limit)
     browser.call("Emulation.setDeviceMetricsOverride", {
         "width": args.width, "height": args.height,
         "deviceScaleFactor": 1, "mobile": False}, session=session,
-        deadline=step())
+        deadline=up, limit=up_limit)
     # about:blank's events are not the report's (keep the attachments).
     browser.events[:] = [e for e in browser.events
                          if e[1] == "Target.attachedToTarget"]
 
+    start = time.monotonic()
+    load_deadline = start + args.timeout
+    load_limit = "--timeout (%gs)" % args.timeout
     nav = browser.call("Page.navigate", {"url": url}, session=session,
-                       deadline=load_deadline)
+                       deadline=load_deadline, limit=load_limit)
     if nav.get("errorText"):
         report.scan(browser.events)
         return None, ["cannot open %s: %s" % (url, nav["errorText"])] + \
@@ -528,17 +562,22 @@ def drive(browser, report, args, url, start, load_deadline):
         report.scan(browser.events)
         return None, ["timeout: no load event within %gs" % args.timeout] + \
             report.problems
-    print("loaded in %.2fs (%s)" % (time.monotonic() - start,
-                                    version.get("product", "?")))
+    print("loaded in %.2fs (%s, started in %.2fs)" % (
+        time.monotonic() - start, version.get("product", "?"),
+        start - started))
     sys.stdout.flush()
 
-    # After load: let late scripts run, then wait for every image.
+    # After load: let late scripts run, then wait for every image.  Each
+    # DevTools answer from here on has --answer-timeout.
     browser.pump(min(load_deadline, time.monotonic() + args.settle))
-    late = max(load_deadline, time.monotonic() + 10)
+    answer_limit = "--answer-timeout (%gs)" % args.answer_timeout
+
+    def late():
+        return time.monotonic() + args.answer_timeout
     while True:
         done = browser.call("Runtime.evaluate", {
             "expression": IMAGES_DONE_JS, "returnByValue": True},
-            session=session, deadline=late)
+            session=session, deadline=late(), limit=answer_limit)
         if done.get("result", {}).get("value") is True:
             break
         if time.monotonic() >= load_deadline:
@@ -550,7 +589,7 @@ def drive(browser, report, args, url, start, load_deadline):
 
     res = browser.call("Runtime.evaluate", {
         "expression": FIGURES_JS, "returnByValue": True},
-        session=session, deadline=late)
+        session=session, deadline=late(), limit=answer_limit)
     if "exceptionDetails" in res:
         raise CheckError("cannot read the figures: %s" % short(
             res["exceptionDetails"].get("text")))
@@ -561,22 +600,23 @@ def drive(browser, report, args, url, start, load_deadline):
         dom = browser.call("Runtime.evaluate", {
             "expression": "'<!DOCTYPE html>\\n' + "
                           "document.documentElement.outerHTML",
-            "returnByValue": True}, session=session, deadline=late)
+            "returnByValue": True}, session=session, deadline=late(),
+            limit=answer_limit)
         with open(args.dom_dump, "w", encoding="utf-8") as f:
             f.write(dom.get("result", {}).get("value", ""))
         print("dom dump: %s" % args.dom_dump)
     if args.screenshot:
-        screenshot(browser, session, args, late, report.fail)
+        screenshot(browser, session, args, late, answer_limit, report.fail)
 
     browser.pump(time.monotonic() + 0.1)
     report.scan(browser.events)
     return figures, report.problems
 
 
-def screenshot(browser, session, args, deadline, fail):
+def screenshot(browser, session, args, late, limit, fail):
     import base64
     metrics = browser.call("Page.getLayoutMetrics", session=session,
-                           deadline=deadline)
+                           deadline=late(), limit=limit)
     size = metrics.get("cssContentSize") or metrics.get("contentSize") or {}
     width = max(1, min(int(round(size.get("width", args.width))),
                        args.max_width))
@@ -585,7 +625,7 @@ def screenshot(browser, session, args, deadline, fail):
     shot = browser.call("Page.captureScreenshot", {
         "format": "png", "captureBeyondViewport": True, "fromSurface": True,
         "clip": {"x": 0, "y": 0, "width": width, "height": height,
-                 "scale": 1}}, session=session, deadline=deadline)
+                 "scale": 1}}, session=session, deadline=late(), limit=limit)
     data = base64.b64decode(shot.get("data", ""))
     if not data.startswith(b"\x89PNG\r\n\x1a\n"):
         fail("the screenshot is not a PNG")
@@ -606,7 +646,14 @@ def parse_args(argv):
                     "checks pass, 1 if not.")
     p.add_argument("html", help="the report's HTML file")
     p.add_argument("--timeout", type=float, default=60.0,
-                   help="seconds for the page to load (default 60)")
+                   help="seconds for the page to load, with its images, "
+                        "from the moment it is opened (default 60)")
+    p.add_argument("--startup-timeout", type=float, default=60.0,
+                   help="seconds for Chromium to start and open a blank "
+                        "page (default 60)")
+    p.add_argument("--answer-timeout", type=float, default=60.0,
+                   help="seconds for each DevTools answer after the load: "
+                        "scripts in the page, the screenshot (default 60)")
     p.add_argument("--screenshot", metavar="PATH",
                    help="save a full-page PNG screenshot here")
     p.add_argument("--dom-dump", metavar="PATH",
@@ -628,8 +675,11 @@ def parse_args(argv):
     p.add_argument("--settle", type=float, default=0.5,
                    help="seconds to wait after the load event (default 0.5)")
     args = p.parse_args(argv)
-    if args.timeout <= 0:
-        p.error("--timeout must be positive")
+    for name in ("timeout", "startup_timeout", "answer_timeout"):
+        if not 0 < getattr(args, name) <= 86400:
+            p.error("--%s must be in (0, 86400]" % name.replace("_", "-"))
+    if not 0 <= args.settle <= 86400:
+        p.error("--settle must be in [0, 86400]")
     return args
 
 
@@ -666,8 +716,12 @@ def main(argv=None):
     os.mkdir(os.path.join(tmp, "profile"))
     # The hard limit: whatever hangs, the whole run is bounded.  The
     # watchdog kills every Chromium process of this run; the pipe then
-    # closes and the waits below end.
-    hard = args.timeout + 45
+    # closes and the waits below end.  It is the sum of every limit: start-
+    # up, the load, the settling time, and the answers after the load (the
+    # image check's last one, the figures, the DOM, two for the screenshot),
+    # with a margin for closing Chromium.
+    hard = (args.startup_timeout + args.timeout + args.settle +
+            5 * args.answer_timeout + 30)
     holder = {}
 
     def watchdog():
@@ -694,7 +748,7 @@ def main(argv=None):
         if proc is not None:
             kill_group(proc)
         kill_strays(tmp)
-        shutil.rmtree(tmp, ignore_errors=True)
+        remove_tree(tmp)
     return result(problems)
 
 

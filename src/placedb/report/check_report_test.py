@@ -8,16 +8,25 @@ own process; the Chromium runs go two at a time (the machine has two cores)
 in setUpClass, and each test then reads its run's exit code and output.
 The runs get a private TMPDIR, so the test can also see that every run
 removed its temp folder and left no Chromium process behind.
+
+Nothing here depends on how fast the machine is: Chromium's start-up has a
+limit of its own (--startup-timeout), separate from the page's --timeout, and
+the timeout cases use pages that can never load (a script fetched from a
+socket of this test that accepts and never answers, and a script that never
+ends), so that their outcome is the same however slowly Chromium starts.
+Every other limit is generous: it only ends a run that hangs.
 """
 
 import base64
 import concurrent.futures
 import os
 import shutil
+import socket
 import struct
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 import unittest
 import zlib
@@ -27,7 +36,14 @@ SCRIPT = os.path.join(HERE, "check_report.py")
 PYTHON = "/usr/bin/python3" if os.path.exists("/usr/bin/python3") \
     else sys.executable
 CHROMIUM = "/usr/bin/chromium"
-RUN_LIMIT = 150  # seconds: no run may take longer (the script must not hang)
+# Generous limits, the same for every run: start-up and each DevTools answer
+# (a busy machine can take long to start Chromium).  They only end a run that
+# hangs, and no outcome below depends on them.
+STARTUP = 120
+ANSWER = 60
+# Seconds: a run that takes longer has hung (check_report.py's own watchdog,
+# the sum of its limits, ends it well before this).
+RUN_LIMIT = STARTUP + 60 + 5 * ANSWER + 120
 
 RED = (204, 30, 30)
 BLUE = (30, 30, 200)
@@ -156,8 +172,15 @@ PAGES = {
     "network.html": page(
         figure("fig-a", '<img src="%s">' % data_url(make_png(8, 8, RED))) +
         '<script src="http://127.0.0.1:9/x.js"></script>'),
-    # Never fires the load event: the check must end at --timeout.
-    "never_loads.html": page("<script>while (true) {}</script>"),
+    # Never fire the load event: the check must end at --timeout.  A
+    # script from a loopback socket of this test that accepts the connection
+    # and never answers ({port} is filled in by setUpClass; check_report.py
+    # lets Chromium resolve no name but localhost, and localhost is never
+    # sent to its dead proxy) ...
+    "never_loads.html": page(
+        '<script src="http://localhost:{port}/never.js"></script>'),
+    # ... and a script that never ends.
+    "script_never_ends.html": page("<script>while (true) {}</script>"),
 }
 
 # name: (page, extra arguments)
@@ -173,6 +196,7 @@ CASES = {
     "expect_missing": ("good.html", ["--expect", "fig-recall", "--expect",
                                      "fig-nowhere", "--min-figures", "3"]),
     "never_loads": ("never_loads.html", ["--timeout", "3"]),
+    "script_never_ends": ("script_never_ends.html", ["--timeout", "3"]),
     # These two never start Chromium.
     "missing_file": ("does_not_exist.html", []),
     "missing_chromium": ("good.html", ["--chromium",
@@ -183,7 +207,9 @@ CASES = {
 def run_case(root, name):
     html, extra = CASES[name]
     out = os.path.join(root, "out")
-    cmd = [PYTHON, SCRIPT, os.path.join(root, "pages", html)] + [
+    cmd = [PYTHON, SCRIPT, os.path.join(root, "pages", html),
+           "--startup-timeout", str(STARTUP),
+           "--answer-timeout", str(ANSWER)] + [
         a.replace("{out}", out) for a in extra]
     env = dict(os.environ, TMPDIR=os.path.join(root, "tmp"))
     start = time.monotonic()
@@ -196,6 +222,38 @@ def run_case(root, name):
         rc = "hung"
         text = (e.stdout or b"").decode("utf-8", "replace")
     return rc, text, time.monotonic() - start
+
+
+class SilentServer:
+    """A loopback socket that accepts every connection and never answers:
+    a request to it never completes while the server lives."""
+
+    def __init__(self):
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.listen(16)
+        self.port = self.sock.getsockname()[1]
+        self.connections = []
+        self.thread = threading.Thread(target=self._accept, daemon=True)
+        self.thread.start()
+
+    def _accept(self):
+        while True:
+            try:
+                conn, _ = self.sock.accept()
+            except OSError:
+                return  # closed
+            self.connections.append(conn)  # held open, never answered
+
+    def close(self):
+        try:
+            self.sock.shutdown(socket.SHUT_RDWR)
+        except OSError:
+            pass
+        self.sock.close()
+        self.thread.join()
+        for conn in self.connections:
+            conn.close()
 
 
 def processes_mentioning(marker):
@@ -221,16 +279,18 @@ class CheckReportTest(unittest.TestCase):
         cls.root = tempfile.mkdtemp(prefix="check_report_test.")
         for sub in ("pages", "out", "tmp"):
             os.mkdir(os.path.join(cls.root, sub))
+        cls.server = SilentServer()
         for name, text in PAGES.items():
             with open(os.path.join(cls.root, "pages", name), "w",
                       encoding="utf-8") as f:
-                f.write(text)
+                f.write(text.replace("{port}", str(cls.server.port)))
         start = time.monotonic()
         with concurrent.futures.ThreadPoolExecutor(max_workers=2) as pool:
             futures = {name: pool.submit(run_case, cls.root, name)
                        for name in CASES}
             cls.results = {name: f.result() for name, f in futures.items()}
         cls.wall = time.monotonic() - start
+        cls.server.close()
         # Every run must have removed its temp folder and its processes.
         cls.tmp_left = os.listdir(os.path.join(cls.root, "tmp"))
         cls.procs_left = processes_mentioning(os.path.join(cls.root, "tmp"))
@@ -317,10 +377,31 @@ class CheckReportTest(unittest.TestCase):
             "FAIL: expected figure fig-nowhere is missing",
             "FAIL: 2 figure(s), expected at least 3"], text)
 
-    def test_page_that_never_loads_times_out(self):
-        text = self.result("never_loads", 1)
+    def timed_out_loading(self, name):
+        text = self.result(name, 1)
+        # The page's own limit ran out, not start-up's, and the run ended by
+        # itself (not by the watchdog).
         self.assertIn("FAIL: timeout: no load event within 3s", text)
-        self.assertLess(self.results["never_loads"][2], 3 + 15)
+        self.assertNotIn("did not answer", text)
+        self.assertNotIn("Chromium was killed", text)
+        self.assertNotIn("loaded in", text)
+        return text
+
+    def test_page_that_never_loads_times_out(self):
+        self.timed_out_loading("never_loads")
+
+    def test_script_that_never_ends_times_out(self):
+        self.timed_out_loading("script_never_ends")
+
+    def test_bad_limits_are_refused(self):
+        for flag in ("--timeout", "--startup-timeout", "--answer-timeout"):
+            for value in ("0", "-1", "nan"):
+                proc = subprocess.run(
+                    [PYTHON, SCRIPT, "x.html", flag, value],
+                    stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                    stdin=subprocess.DEVNULL, timeout=RUN_LIMIT)
+                self.assertEqual(proc.returncode, 2, (flag, value))
+                self.assertIn(flag, proc.stderr.decode(), (flag, value))
 
     def test_missing_file(self):
         text = self.result("missing_file", 1)

@@ -22,7 +22,9 @@ cat "$OUT/experiment.log"
 grep -q "8 settings (0 finished earlier)" "$OUT/experiment.log" || fail "first run"
 [[ -s "$OUT/experiment/report.html" ]] || fail "no report.html"
 
+# Generous limits (a busy machine starts Chromium slowly): they only end a hang.
 "$PYTHON" "$HERE/check_report.py" "$OUT/experiment/report.html" \
+  --startup-timeout 120 --timeout 120 --answer-timeout 120 \
   --screenshot "$OUT/report_screenshot.png" --min-figures 11 \
   --expect fig-time --expect fig-correct --expect fig-size --expect fig-recall-at-k \
   --expect fig-pr --expect fig-latency --expect fig-stages --expect fig-failures \

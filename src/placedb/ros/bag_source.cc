@@ -12,6 +12,7 @@
 #include <mutex>
 #include <opencv2/imgcodecs.hpp>
 
+#include "placedb/dataset/frame.h"
 #include "placedb/dataset/tum.h"
 #include "placedb/ros/image_conversion.h"
 #include "placedb/util/check.h"
@@ -45,7 +46,12 @@ cv::Mat Decode(OpenBag& open, size_t index, const std::string& shown) {
   try {
     if (const auto image = m.instantiate<sensor_msgs::Image>()) return ImageMessageToBgr(*image);
     if (const auto compressed = m.instantiate<sensor_msgs::CompressedImage>()) {
-      return cv::imdecode(compressed->data, cv::IMREAD_COLOR);  // empty when undecodable
+      // Bounded by the header's pixel count before decoding; empty when
+      // undecodable or too large.
+      DecodedImage d = DecodeImage(compressed->data.data(), compressed->data.size(),
+                                   ImageReadOptions(), shown);
+      if (!d.error.empty()) spdlog::warn("{}", d.error);
+      return d.image;
     }
   } catch (const std::exception& e) {
     spdlog::warn("{}: {}", shown, e.what());

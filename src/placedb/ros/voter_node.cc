@@ -19,6 +19,7 @@
 #include "placedb/ros/messages.h"
 #include "placedb/ros/node_common.h"
 #include "placedb/util/check.h"
+#include "placedb/util/json_reader.h"
 
 namespace placedb {
 namespace {
@@ -113,7 +114,7 @@ class Voter {
                             {"wall_ms", ros_node::WallMs()}, {"wait_ms", a.waited_ms},
                             {"complete", a.complete()},      {"answered", a.answered},
                             {"missing", a.missing},          {"result", a.result}};
-        answers_log_ << j.dump() << "\n" << std::flush;
+        answers_log_ << DumpJson(j) << "\n" << std::flush;
       }
       // Headers of answered frames are not needed again.
       headers_.erase(headers_.begin(), headers_.upper_bound(a.frame_seq));

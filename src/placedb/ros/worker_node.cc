@@ -27,7 +27,7 @@ class Worker {
       : db_(std::move(db)),
         options_(std::move(options)),
         partition_(std::move(partition)),
-        database_id_(db_.database().keyframes_file()),
+        database_id_(db_.Read().database().keyframes_file()),
         drops_("placedb_worker"),
         it_(nh_) {
     results_ = nh_.advertise<placedb_msgs::PartialResult>("partial_results", 100);
@@ -75,9 +75,13 @@ class Worker {
       drops_.Drop("compressed image", "larger than 64 MiB");
       return;
     }
-    try {
-      image = cv::imdecode(msg->data, cv::IMREAD_COLOR);
-    } catch (const cv::Exception&) {
+    // Bounded by the header's pixel count before decoding (ImageReadOptions).
+    const DecodedImage decoded =
+        DecodeImage(msg->data.data(), msg->data.size(), ImageReadOptions(), "compressed image");
+    image = decoded.image;
+    if (decoded.too_large) {
+      drops_.Drop("compressed image", decoded.error);
+      return;
     }
     if (image.empty()) {
       drops_.Drop("compressed image",
@@ -158,10 +162,10 @@ int main(int argc, char** argv) {
     // OpenCV's own threads would only compete with the other workers.
     cv::setNumThreads(1);
     placedb::PlaceDatabase opened = db.Open();
-    const placedb::KeyframeSubset partition = opened.database().subset();
+    const placedb::KeyframeSubset partition = opened.Read().database().subset();
     ROS_INFO("placedb_worker: %s of %s, %zu keyframes, %zu features, input %s",
              partition.Describe().c_str(), db.dir.c_str(), opened.size(),
-             opened.database().num_features(), input.c_str());
+             opened.Read().database().num_features(), input.c_str());
     placedb::Worker worker(std::move(opened), query.Get(), partition, input);
     ros::spin();
   } catch (const std::exception& e) {

@@ -1,9 +1,14 @@
 #include "placedb/util/file_io.h"
 
 #include <fcntl.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <signal.h>
+
+#include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <filesystem>
 #include <fstream>
@@ -25,19 +30,56 @@ std::string ReadFileToString(const std::string& path) {
 
 namespace {
 
-void WriteAllOrThrow(int fd, const std::string& data, const std::string& path) {
+// Writes all of `data` to `fd`; false with errno set on an error.
+bool WriteAll(int fd, const char* data, size_t size) {
   size_t written = 0;
-  while (written < data.size()) {
-    const ssize_t n = ::write(fd, data.data() + written, data.size() - written);
+  while (written < size) {
+    const ssize_t n = ::write(fd, data + written, size - written);
     if (n < 0) {
       if (errno == EINTR) continue;
-      const int err = errno;
-      ::close(fd);
-      PLACEDB_THROW_RUNTIME("cannot write ", path, ": ", std::strerror(err));
+      return false;
     }
     written += static_cast<size_t>(n);
   }
+  return true;
 }
+
+// What is at `path` now: nothing (a new path), a regular file, a directory,
+// or something a crash-safe replace must not touch (a symlink, a device, a
+// FIFO, a socket).
+enum class PathKind { kNew, kRegular, kDirectory, kSpecial };
+
+PathKind KindOfPath(const std::string& path) {
+  struct stat st;
+  if (::lstat(path.c_str(), &st) != 0) {
+    if (errno == ENOENT) return PathKind::kNew;
+    PLACEDB_THROW_RUNTIME("cannot write ", path, ": ", std::strerror(errno));
+  }
+  if (S_ISREG(st.st_mode)) return PathKind::kRegular;
+  if (S_ISDIR(st.st_mode)) return PathKind::kDirectory;
+  return PathKind::kSpecial;
+}
+
+// Writes `data` into what `path` names (a symlink's target, a device, a
+// FIFO) as a stream: the path itself is left as it is.
+void WriteStream(const std::string& path, const std::string& data) {
+  int flags = O_WRONLY | O_CLOEXEC;
+  struct stat target;
+  // A symlink to a regular file is overwritten through the link.
+  if (::stat(path.c_str(), &target) == 0 && S_ISREG(target.st_mode)) flags |= O_TRUNC;
+  const int fd = ::open(path.c_str(), flags);
+  if (fd < 0) PLACEDB_THROW_RUNTIME("cannot write ", path, ": ", std::strerror(errno));
+  if (!WriteAll(fd, data.data(), data.size())) {
+    const int err = errno;
+    ::close(fd);
+    PLACEDB_THROW_RUNTIME("cannot write ", path, ": ", std::strerror(err));
+  }
+  if (::close(fd) != 0 && errno != EINTR) {
+    PLACEDB_THROW_RUNTIME("cannot write ", path, ": ", std::strerror(errno));
+  }
+}
+
+std::atomic<uint64_t> temp_counter{0};
 
 }  // namespace
 
@@ -48,17 +90,74 @@ void SyncDirectory(const std::string& dir) {
   ::close(fd);
 }
 
+std::string TempPathFor(const std::string& path) {
+  return path + ".tmp." + std::to_string(::getpid()) + "." + std::to_string(++temp_counter);
+}
+
+bool IsTempFileName(const std::string& name, long* pid) {
+  // "<stem>.tmp.<pid>" or "<stem>.tmp.<pid>.<n>", stem not empty.
+  const size_t at = name.rfind(".tmp.");
+  if (at == std::string::npos || at == 0) return false;
+  auto digits = [](const std::string& text) {
+    return !text.empty() && text.size() <= 18 &&
+           std::all_of(text.begin(), text.end(), [](char c) { return c >= '0' && c <= '9'; });
+  };
+  const std::string rest = name.substr(at + 5);
+  const size_t dot = rest.find('.');
+  const std::string pid_text = rest.substr(0, dot);
+  if (!digits(pid_text)) return false;
+  if (dot != std::string::npos && !digits(rest.substr(dot + 1))) return false;
+  if (pid != nullptr) *pid = std::stol(pid_text);
+  return true;
+}
+
+bool ProcessIsGone(long pid) {
+  if (pid <= 0 || pid > INT32_MAX) return true;
+  return ::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH;
+}
+
+size_t SweepTempFiles(const std::string& dir) {
+  size_t removed = 0;
+  std::error_code ec;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    long pid = 0;
+    const std::string name = it->path().filename().string();
+    if (!IsTempFileName(name, &pid) || !ProcessIsGone(pid)) continue;
+    std::error_code type_ec;
+    if (!it->is_regular_file(type_ec) || it->is_symlink(type_ec)) continue;
+    std::error_code remove_ec;
+    if (fs::remove(it->path(), remove_ec)) ++removed;
+  }
+  return removed;
+}
+
 void WriteFileAtomic(const std::string& path, const std::string& data) {
-  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  switch (KindOfPath(path)) {
+    case PathKind::kSpecial:
+      WriteStream(path, data);
+      return;
+    case PathKind::kDirectory:
+      PLACEDB_THROW_RUNTIME("cannot write ", path, ": it is a directory");
+    case PathKind::kNew:
+    case PathKind::kRegular:
+      break;
+  }
+  const std::string tmp = TempPathFor(path);
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
   if (fd < 0) PLACEDB_THROW_RUNTIME("cannot create ", tmp, ": ", std::strerror(errno));
-  WriteAllOrThrow(fd, data, tmp);
-  if (::fsync(fd) != 0) {
+  auto fail = [&](const char* what) {
     const int err = errno;
     ::close(fd);
-    PLACEDB_THROW_RUNTIME("cannot fsync ", tmp, ": ", std::strerror(err));
+    ::unlink(tmp.c_str());
+    PLACEDB_THROW_RUNTIME("cannot ", what, " ", tmp, ": ", std::strerror(err));
+  };
+  if (!WriteAll(fd, data.data(), data.size())) fail("write");
+  if (::fsync(fd) != 0) fail("fsync");
+  if (::close(fd) != 0 && errno != EINTR) {
+    const int err = errno;
+    ::unlink(tmp.c_str());
+    PLACEDB_THROW_RUNTIME("cannot write ", tmp, ": ", std::strerror(err));
   }
-  ::close(fd);
   if (::rename(tmp.c_str(), path.c_str()) != 0) {
     const int err = errno;
     ::unlink(tmp.c_str());
@@ -67,15 +166,19 @@ void WriteFileAtomic(const std::string& path, const std::string& data) {
   SyncDirectory(fs::path(path).parent_path().string());
 }
 
-AtomicFileWriter::AtomicFileWriter(std::string path)
-    : path_(std::move(path)), tmp_(path_ + ".tmp." + std::to_string(::getpid())) {
-  fd_ = ::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+AtomicFileWriter::AtomicFileWriter(std::string path) : path_(std::move(path)) {
+  const PathKind kind = KindOfPath(path_);
+  if (kind == PathKind::kDirectory || kind == PathKind::kSpecial) {
+    PLACEDB_THROW_RUNTIME("cannot write ", path_, ": not a regular file (write to a file path)");
+  }
+  tmp_ = TempPathFor(path_);
+  fd_ = ::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
   if (fd_ < 0) PLACEDB_THROW_RUNTIME("cannot create ", tmp_, ": ", std::strerror(errno));
 }
 
 AtomicFileWriter::~AtomicFileWriter() {
   if (fd_ >= 0) ::close(fd_);
-  if (!committed_) ::unlink(tmp_.c_str());
+  if (!committed_ && !tmp_.empty()) ::unlink(tmp_.c_str());
 }
 
 void AtomicFileWriter::Flush() {
@@ -125,6 +228,15 @@ void AtomicFileWriter::WriteAt(uint64_t offset, const void* data, size_t size) {
     }
     done += static_cast<size_t>(n);
   }
+}
+
+void AtomicFileWriter::CommitAs(const std::string& path) {
+  const PathKind kind = KindOfPath(path);
+  if (kind == PathKind::kDirectory || kind == PathKind::kSpecial) {
+    PLACEDB_THROW_RUNTIME("cannot write ", path, ": not a regular file");
+  }
+  path_ = path;
+  Commit();
 }
 
 void AtomicFileWriter::Commit() {
@@ -193,6 +305,26 @@ std::shared_ptr<const MappedFile> DirectoryHandle::MapFile(const std::string& na
   }
 }
 
+std::unique_ptr<DirectoryLock> DirectoryLock::TryLock(const std::string& dir) {
+  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) PLACEDB_THROW_RUNTIME("cannot open directory ", dir, ": ", std::strerror(errno));
+  int rc;
+  do {
+    rc = ::flock(fd, LOCK_EX | LOCK_NB);
+  } while (rc != 0 && errno == EINTR);
+  if (rc != 0) {
+    const int err = errno;
+    ::close(fd);
+    if (err == EWOULDBLOCK) return nullptr;
+    PLACEDB_THROW_RUNTIME("cannot lock directory ", dir, ": ", std::strerror(err));
+  }
+  return std::unique_ptr<DirectoryLock>(new DirectoryLock(fd));
+}
+
+DirectoryLock::~DirectoryLock() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
 uint64_t FileSize(const std::string& path) {
   std::error_code ec;
   const auto size = fs::file_size(path, ec);
@@ -214,6 +346,80 @@ bool HostIsLittleEndian() {
   uint8_t first;
   std::memcpy(&first, &probe, 1);
   return first == 1;
+}
+
+bool IsPlainFileName(const std::string& name) {
+  if (name.empty() || name.size() > 255 || name[0] == '.') return false;
+  return std::all_of(name.begin(), name.end(), [](char c) {
+    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+           c == '.' || c == '_' || c == '-';
+  });
+}
+
+namespace {
+// Length of the well-formed UTF-8 sequence at text[i] (1 to 4), 0 when the
+// byte there starts none.
+size_t Utf8SequenceLength(const std::string& text, size_t i) {
+  const auto byte = [&](size_t k) { return static_cast<unsigned char>(text[k]); };
+  const unsigned char c = byte(i);
+  if (c < 0x80) return 1;
+  size_t n = 0;
+  unsigned char lo = 0x80, hi = 0xBF;  // the allowed range of the second byte
+  if (c >= 0xC2 && c <= 0xDF) {
+    n = 2;
+  } else if (c >= 0xE0 && c <= 0xEF) {
+    n = 3;
+    if (c == 0xE0) lo = 0xA0;  // no overlong forms
+    if (c == 0xED) hi = 0x9F;  // no surrogates
+  } else if (c >= 0xF0 && c <= 0xF4) {
+    n = 4;
+    if (c == 0xF0) lo = 0x90;  // no overlong forms
+    if (c == 0xF4) hi = 0x8F;  // nothing above U+10FFFF
+  } else {
+    return 0;
+  }
+  if (text.size() - i < n) return 0;
+  if (byte(i + 1) < lo || byte(i + 1) > hi) return 0;
+  for (size_t k = 2; k < n; ++k) {
+    if (byte(i + k) < 0x80 || byte(i + k) > 0xBF) return 0;
+  }
+  return n;
+}
+}  // namespace
+
+bool IsValidUtf8(const std::string& text) {
+  for (size_t i = 0; i < text.size();) {
+    const size_t n = Utf8SequenceLength(text, i);
+    if (n == 0) return false;
+    i += n;
+  }
+  return true;
+}
+
+std::string EscapeForTerminal(const std::string& text) {
+  static const char kHex[] = "0123456789abcdef";
+  std::string out;
+  out.reserve(text.size());
+  for (size_t i = 0; i < text.size();) {
+    const unsigned char c = static_cast<unsigned char>(text[i]);
+    size_t n = Utf8SequenceLength(text, i);
+    // C0 controls and DEL; C1 controls (U+0080..U+009F, 0xC2 0x80..0x9F).
+    const bool control = c < 0x20 || c == 0x7F ||
+                         (n == 2 && c == 0xC2 && static_cast<unsigned char>(text[i + 1]) < 0xA0);
+    if (n == 0 || control) {
+      n = n == 0 ? 1 : n;
+      for (size_t k = 0; k < n; ++k) {
+        const unsigned char b = static_cast<unsigned char>(text[i + k]);
+        out += "\\x";
+        out += kHex[b >> 4];
+        out += kHex[b & 15];
+      }
+    } else {
+      out.append(text, i, n);
+    }
+    i += n;
+  }
+  return out;
 }
 
 }  // namespace placedb

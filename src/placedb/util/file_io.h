@@ -17,17 +17,38 @@ namespace placedb {
 std::string ReadFileToString(const std::string& path);
 
 // Writes `data` to `path` so that a crash leaves either the old file or the new
-// one, never a torn file: write to "<path>.tmp.<pid>", fsync, rename, fsync the
-// directory.
+// one, never a torn file: write to a temporary sibling (TempPathFor), fsync,
+// rename, fsync the directory. The temporary file is removed on any error.
+// Only a regular file (or a new path) is replaced: a path that is a symlink,
+// a character device, a FIFO or a socket (`/dev/stdout`, `/dev/fd/1`, a named
+// pipe) is opened and written as a stream, never replaced; a directory is an
+// error. Errors throw std::runtime_error naming the path.
 void WriteFileAtomic(const std::string& path, const std::string& data);
 
 // fsyncs a directory so that renames inside it are durable.
 void SyncDirectory(const std::string& dir);
 
-// A file written through a buffer into "<path>.tmp.<pid>" and moved to
-// `path` by Commit (fsync, rename, fsync of the directory): a crash leaves
-// the old file or the new one, never a torn one. Destroyed uncommitted, it
-// removes the temporary file. Not thread-safe.
+// A temporary sibling of `path` for a crash-safe write:
+// "<path>.tmp.<pid>.<n>", unique within this process (n counts up) and
+// between processes (pid).
+std::string TempPathFor(const std::string& path);
+// Whether `name` (a file name) is a temporary file name of TempPathFor (or of
+// earlier versions, "<name>.tmp.<pid>"); its process id in `*pid`.
+bool IsTempFileName(const std::string& name, long* pid = nullptr);
+// Whether process `pid` is gone (so its temporary files are debris).
+bool ProcessIsGone(long pid);
+// Removes, directly inside `dir`, the temporary files (IsTempFileName) of
+// processes that are gone; returns how many. Errors are ignored: sweeping is
+// best effort and never fails the caller.
+size_t SweepTempFiles(const std::string& dir);
+
+// A file written through a buffer into a temporary sibling (TempPathFor) and
+// moved to `path` by Commit (fsync, rename, fsync of the directory): a crash
+// leaves the old file or the new one, never a torn one. Destroyed uncommitted
+// (an error, an exception), it removes the temporary file. `path` must be a
+// regular file or a new path (anything else is std::runtime_error: this
+// writer fills its header in last, which a stream cannot take). Not
+// thread-safe.
 class AtomicFileWriter {
  public:
   explicit AtomicFileWriter(std::string path);
@@ -42,6 +63,9 @@ class AtomicFileWriter {
   void WriteAt(uint64_t offset, const void* data, size_t size);
   uint64_t position() const { return position_; }
   void Commit();
+  // Commits under another name, `path` (a content name known only at the
+  // end), with the same checks and durability as Commit.
+  void CommitAs(const std::string& path);
 
  private:
   void Flush();
@@ -74,6 +98,23 @@ class DirectoryHandle {
 
  private:
   std::string path_;
+  int fd_ = -1;
+};
+
+// An exclusive advisory lock (flock) on a directory, held while the object
+// lives: one writer per database folder across processes. Taking it needs
+// only read access to the folder (no lock file is created).
+class DirectoryLock {
+ public:
+  // The lock, or nullptr when another open file (process or session) holds
+  // it. Throws std::runtime_error when `dir` cannot be opened.
+  static std::unique_ptr<DirectoryLock> TryLock(const std::string& dir);
+  ~DirectoryLock();
+  DirectoryLock(const DirectoryLock&) = delete;
+  DirectoryLock& operator=(const DirectoryLock&) = delete;
+
+ private:
+  explicit DirectoryLock(int fd) : fd_(fd) {}
   int fd_ = -1;
 };
 
@@ -169,5 +210,23 @@ class BinaryReader {
 
 // True on little-endian hosts (the only ones the binary formats support).
 bool HostIsLittleEndian();
+
+// Names read from files (a database's stored-image names) become paths only
+// when this holds: a plain file name of 1 to 255 bytes from the POSIX
+// portable set [A-Za-z0-9._-], not starting with '.' (so never "." or "..",
+// no hidden or temporary-looking names), with no separator, control
+// character, NUL or byte above 0x7E. Such a name joined to a folder stays in
+// that folder.
+bool IsPlainFileName(const std::string& name);
+
+// Whether `text` is well-formed UTF-8 (RFC 3629: no overlong forms, no
+// surrogates, nothing above U+10FFFF).
+bool IsValidUtf8(const std::string& text);
+
+// `text` safe to write to a terminal: control characters (C0, DEL, C1) and
+// bytes that are not part of well-formed UTF-8 become "\xNN" (two lowercase
+// hex digits); everything else (printable ASCII, other UTF-8) is kept. Every
+// CLI print of a path or string read from a file goes through it.
+std::string EscapeForTerminal(const std::string& text);
 
 }  // namespace placedb

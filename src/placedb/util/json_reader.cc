@@ -51,6 +51,13 @@ int64_t JsonReader::Integer(const char* key, int64_t lo, int64_t hi) const {
   return i;
 }
 
+uint64_t JsonReader::Unsigned(const char* key) const {
+  const nlohmann::json& v = Member(key);
+  if (!v.is_number_integer()) Fail(key, "is not an integer");
+  if (!v.is_number_unsigned() && v.get<int64_t>() < 0) Fail(key, "is negative");
+  return v.get<uint64_t>();
+}
+
 bool JsonReader::Boolean(const char* key) const {
   const nlohmann::json& v = Member(key);
   if (!v.is_boolean()) Fail(key, "is not true or false");
@@ -74,6 +81,10 @@ void JsonReader::Read(const char* key, bool* out) const {
 }
 void JsonReader::Read(const char* key, std::string* out) const {
   if (Has(key)) *out = String(key);
+}
+
+std::string DumpJson(const nlohmann::json& j, int indent) {
+  return j.dump(indent, ' ', false, nlohmann::json::error_handler_t::replace);
 }
 
 }  // namespace placedb

@@ -26,6 +26,8 @@ class JsonReader {
   JsonReader Child(const char* key) const;  // must be an object
   double Number(const char* key) const;     // finite
   int64_t Integer(const char* key, int64_t lo, int64_t hi) const;
+  // A non-negative integer of the full 64-bit range (seeds, checksums).
+  uint64_t Unsigned(const char* key) const;
   bool Boolean(const char* key) const;
   std::string String(const char* key) const;
 
@@ -42,5 +44,12 @@ class JsonReader {
   std::string where_;
   bool runtime_errors_;
 };
+
+// JSON text of `j` (nlohmann's dump with `indent`; -1: one line) that never
+// throws on strings that are not UTF-8 (paths are bytes): every byte that is
+// not part of well-formed UTF-8 becomes U+FFFD, the replacement character, so
+// the output is always valid UTF-8 JSON. Every JSON placedb writes goes
+// through it.
+std::string DumpJson(const nlohmann::json& j, int indent = -1);
 
 }  // namespace placedb
