@@ -1,17 +1,23 @@
 # The two commands of the README:
 #   make demo   install what is needed, build, run the main job on the sample data
-#   make test   install what is needed, build, run every test: the Release
-#               build, then the whole suite under AddressSanitizer +
-#               UndefinedBehaviorSanitizer, then the threaded tests under
-#               ThreadSanitizer
+#   make test   install what is needed, build once (Release, the build users
+#               get), run the whole suite
+# and the sanitizer passes CI runs after it:
+#   make check  the whole suite under AddressSanitizer + UndefinedBehaviorSanitizer,
+#               then the threaded tests under ThreadSanitizer
 BUILD_DIR ?= build
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 # The python3 on some PATHs lacks ROS's modules: CMake is given Debian's.
 CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release -DPython3_EXECUTABLE=/usr/bin/python3
-# The tests a ThreadSanitizer pass runs (CTest label "threads").
+# The tests a ThreadSanitizer pass builds and runs (CTest label "threads").
 TSAN_TARGETS = util_test surf_test index_test bow_test eval_test distributed_test
+ASAN_ENV = ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 \
+  UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+TSAN_ENV = OPENCV_FOR_THREADS_NUM=1 \
+  TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1:suppressions=$(CURDIR)/cmake/tsan.supp
 
-.PHONY: all deps configure build test test-release test-asan test-tsan demo bench clean
+.PHONY: all deps configure build test test-release check check-asan check-tsan test-asan \
+        test-tsan demo bench clean
 
 all: build
 
@@ -24,24 +30,28 @@ configure: deps
 build: configure
 	cmake --build $(BUILD_DIR) -j$(JOBS)
 
-test: test-release test-asan test-tsan
-
-test-release: build
+test: build
 	cd $(BUILD_DIR) && ctest --output-on-failure -j$(JOBS)
 
-test-asan: deps
+# The name earlier versions used for the Release pass.
+test-release: test
+
+check: check-asan check-tsan
+
+# Sanitizer trees build with -O1 -g1 (presets in CMakePresets.json) and Ninja:
+# they exist to run the tests, so only what the tests need is built.
+check-asan: deps
 	cmake --preset asan
 	cmake --build build-asan -j$(JOBS)
-	cd build-asan && ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 \
-	  UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-	  ctest --output-on-failure -j$(JOBS) -LE no-sanitizer
+	cd build-asan && $(ASAN_ENV) ctest --output-on-failure -j$(JOBS) -LE no-sanitizer
 
-test-tsan: deps
+check-tsan: deps
 	cmake --preset tsan
 	cmake --build build-tsan -j$(JOBS) --target $(TSAN_TARGETS)
-	cd build-tsan && OPENCV_FOR_THREADS_NUM=1 \
-	  TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1:suppressions=$(CURDIR)/cmake/tsan.supp \
-	  ctest --output-on-failure -j$(JOBS) -L threads
+	cd build-tsan && $(TSAN_ENV) ctest --output-on-failure -j$(JOBS) -L threads
+
+test-asan: check-asan
+test-tsan: check-tsan
 
 demo: build
 	./scripts/demo.sh $(BUILD_DIR)

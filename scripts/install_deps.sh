@@ -6,6 +6,7 @@ set -euo pipefail
 
 PACKAGES=(
   g++ cmake make pkg-config
+  ninja-build            # the sanitizer trees of make check (CMakePresets.json)
   libopencv-dev          # ORB, FAST, SIFT, BFMatcher, image I/O
   libcli11-dev           # command line
   libfmt-dev libspdlog-dev

@@ -100,12 +100,15 @@ int main(int argc, char** argv) {
           ROS_WARN("placedb_feed: skipped unreadable image %s", f.image_path.c_str());
           continue;
         }
-        // header.seq is numbered by roscpp, per publisher: the announcement,
-        // the image and the compressed image each get the same number, the
-        // frame's (from 0), which is how the workers and the voter know it.
+        // The frame's number (from 0) is how the workers and the voter know
+        // it. roscpp numbers header.seq per publisher, one message per frame
+        // on each, for messages that contain a header (the image, the
+        // compressed image); the announcement is a bare std_msgs/Header,
+        // which roscpp leaves as it is, so its seq is set here.
         std_msgs::Header header;
         header.stamp = f.timestamp >= 0 ? ros::Time(f.timestamp) : ros::Time::now();
         header.frame_id = frame_id;
+        header.seq = static_cast<uint32_t>(seq);
         announce.publish(header);
         images.publish(placedb::BgrToImageMessage(image, header));
         if (compressed) {
