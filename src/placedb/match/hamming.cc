@@ -141,6 +141,9 @@ __attribute__((target("avx2,popcnt"))) TwoNearest TwoNearestAvx2(const uint8_t* 
     out.Update(static_cast<uint32_t>(d[2]), j + 2);
     out.Update(static_cast<uint32_t>(d[3]), j + 3);
   }
+  // Explicit, not left to the compiler (GCC inserts it only from -O2 on):
+  // the caller's SSE code must not pay for dirty upper halves.
+  _mm256_zeroupper();
   for (; j < count; ++j) {
     out.Update(HammingPopcnt(query, db + static_cast<size_t>(j) * 32, 32), j);
   }

@@ -47,6 +47,8 @@ __attribute__((target("avx2,fma"))) float L2SquaredAvx2(const float* a, const fl
   s = _mm_add_ps(s, _mm_movehl_ps(s, s));
   s = _mm_add_ss(s, _mm_shuffle_ps(s, s, 1));
   float sum = _mm_cvtss_f32(s);
+  // Explicit, not left to the compiler (GCC inserts it only from -O2 on).
+  _mm256_zeroupper();
   for (; i < n; ++i) {
     const float d = a[i] - b[i];
     sum += d * d;
@@ -125,6 +127,7 @@ __attribute__((target("avx2,fma"))) TwoNearestL2Result TwoNearestAvx2Fixed(
     }
     out.Update(HorizontalSum(_mm256_add_ps(acc0, acc1)), j);
   }
+  _mm256_zeroupper();
   return out;
 }
 
@@ -161,7 +164,10 @@ PLACEDB_TARGET_AVX512 float L2SquaredAvx512(const float* a, const float* b, int 
         _mm512_sub_ps(_mm512_maskz_loadu_ps(m, a + i), _mm512_maskz_loadu_ps(m, b + i));
     acc0 = _mm512_fmadd_ps(d, d, acc0);
   }
-  return _mm512_reduce_add_ps(_mm512_add_ps(acc0, acc1));
+  const float sum = _mm512_reduce_add_ps(_mm512_add_ps(acc0, acc1));
+  // Explicit, not left to the compiler (GCC inserts it only from -O2 on).
+  _mm256_zeroupper();
+  return sum;
 }
 
 // Squared distance of one row to the query held in registers, as 16 partial
@@ -293,7 +299,9 @@ PLACEDB_TARGET_AVX512 TwoNearestL2Result TwoNearestAvx512Fixed(const float* quer
       d = _mm512_mask_mov_ps(inf, static_cast<__mmask16>((1u << rest) - 1), d);
       Track(s, d, _mm512_add_epi32(iota, _mm512_set1_epi32(j)));
     }
-    return Finish(s);
+    const TwoNearestL2Result out = Finish(s);
+    _mm256_zeroupper();
+    return out;
   }
   // With signs: the indices of the rows of the query's sign are listed (in
   // increasing order) for a chunk of rows, then scanned 16 at a time like
@@ -324,7 +332,9 @@ PLACEDB_TARGET_AVX512 TwoNearestL2Result TwoNearestAvx512Fixed(const float* quer
     pending -= g;
   }
   if (pending > 0) ScanGathered<kDims>(q, db, rows, pending, s);
-  return Finish(s);
+  const TwoNearestL2Result out = Finish(s);
+  _mm256_zeroupper();
+  return out;
 }
 
 TwoNearestL2Result TwoNearestAvx512(const float* query, const float* db, int count, int dims,

@@ -18,6 +18,7 @@
 #include <gtest/gtest.h>
 #include <placedb_msgs/PartialResult.h>
 #include <ros/network.h>
+#include <ros/callback_queue.h>
 #include <ros/ros.h>
 #include <rosbag/bag.h>
 #include <sensor_msgs/CompressedImage.h>
@@ -240,8 +241,25 @@ TEST_F(RosSystemTest, AnswersEqualTheSingleProcessQuery) {
       << ReadLog("full_voter.log") << ReadLog("full_worker0.log");
   ASSERT_TRUE(WaitLinked({ns + "/placedb_voter"}, ns + "/answers", {ns + "/placedb_feed"}))
       << ReadLog("full_feed.log");
+  // The announcements on frames carry the frame's number, as its image does
+  // (roscpp numbers only messages that contain a header: a bare
+  // std_msgs/Header once went out with seq 0 for every frame).
+  ros::CallbackQueue announcement_queue;
+  ros::NodeHandle announcement_nh;
+  announcement_nh.setCallbackQueue(&announcement_queue);
+  std::vector<uint32_t> announced;
+  const ros::Subscriber announcements = announcement_nh.subscribe<std_msgs::Header>(
+      ns + "/frames", 100, [&](const std_msgs::HeaderConstPtr& h) { announced.push_back(h->seq); },
+      ros::VoidConstPtr(), ros::TransportHints());
+  ASSERT_TRUE(WaitLinked({ns + "/placedb_feed"}, ns + "/frames", {ros::this_node::getName()}));
   const ros::Subscriber gate = OpenGate(ns);
   ASSERT_EQ(WaitExit(feed, kRunLimit), 0) << ReadLog("full_feed.log");
+  EXPECT_TRUE(WaitUntil([&] {
+    announcement_queue.callAvailable();
+    return announced.size() >= 44;
+  }));
+  ASSERT_EQ(announced.size(), 44u);
+  for (uint32_t i = 0; i < announced.size(); ++i) EXPECT_EQ(announced[i], i) << "announcement " << i;
   const std::vector<nlohmann::json> answers = WaitLines(Path("full_answers.jsonl"), 44);
   ASSERT_EQ(answers.size(), 44u) << ReadLog("full_voter.log");
   const std::vector<QueryResult> expected = SingleProcess(QueryOptions());
