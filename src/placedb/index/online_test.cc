@@ -2,11 +2,14 @@
 // reopened.
 #include <gtest/gtest.h>
 
+#include <signal.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <atomic>
 #include <filesystem>
 #include <fstream>
+#include <chrono>
 #include <limits>
 #include <set>
 #include <opencv2/imgcodecs.hpp>
@@ -309,7 +312,19 @@ TEST_P(OnlineTest, DeadlineCountsTheWaitForAWriter) {
   const FeatureSet query = db.Extract(cv::imread(RtabmapImage(41)));
   QueryOptions options = Options();
   options.deadline_ms = 20;
-  std::optional<PlaceDatabase::View> view(db.Read());
+  // Another thread holds a View until told; while it does, it also reads
+  // again (a nested read behind the waiting writer must not deadlock).
+  std::atomic<int> stage{0};  // 1: holding, 2: read again, 3: nested read done, 4: release
+  std::thread holder([&] {
+    const PlaceDatabase::View view = db.Read();
+    stage = 1;
+    while (stage.load() < 2) std::this_thread::yield();
+    EXPECT_TRUE(db.FindKeyframe(5));
+    EXPECT_EQ(db.manifest()["counts"]["keyframes"], 30);
+    stage = 3;
+    while (stage.load() < 4) std::this_thread::yield();
+  });
+  while (stage.load() < 1) std::this_thread::yield();
   std::thread writer([&] { db.Remove(2); });  // waits for the view
   // Once the writer waits, every query under a deadline gives up; before,
   // they answer. Bounded: the writer gets there.
@@ -323,7 +338,10 @@ TEST_P(OnlineTest, DeadlineCountsTheWaitForAWriter) {
   EXPECT_EQ(r.num_examined, 0u);
   EXPECT_TRUE(r.ranked.empty());
   EXPECT_FALSE(r.matched);
-  view.reset();
+  stage = 2;
+  while (stage.load() < 3) std::this_thread::yield();
+  stage = 4;
+  holder.join();
   writer.join();
   EXPECT_FALSE(db.FindKeyframe(2));
   EXPECT_GT(db.Query(query, options).num_examined, 0u);
@@ -377,6 +395,83 @@ TEST_P(OnlineTest, DebrisOfKilledWritersIsSweptOnOpen) {
   db.Save();
   for (const std::string& path : debris) EXPECT_FALSE(fs::exists(path)) << path;
   EXPECT_FALSE(fs::exists(dir + "/images/000003.png"));
+}
+
+// Real kills: a writer process (add, save, remove, save, ...) killed with
+// SIGKILL at moments spread over its work; after each, the next open leaves
+// only what the manifest names: its keyframe file, its index files, the PNGs
+// of its keyframes, and no temporary file.
+TEST_P(OnlineTest, NoDebrisSurvivesTheNextOpenAfterKills) {
+  if (testing_util::kThreadSanitizer) GTEST_SKIP() << "forks: not under ThreadSanitizer";
+  const std::string dir = Dir();
+  std::vector<cv::Mat> images;
+  for (int id = 31; id <= 36; ++id) images.push_back(cv::imread(RtabmapImage(id)));
+  // OpenCV's worker threads do not survive fork: sequential meanwhile.
+  struct SequentialOpenCv {
+    const int saved = cv::getNumThreads();
+    SequentialOpenCv() { cv::setNumThreads(0); }
+    ~SequentialOpenCv() { cv::setNumThreads(saved); }
+  } sequential;
+  for (int round = 0; round < 6; ++round) {
+    SCOPED_TRACE("round " + std::to_string(round));
+    int ready[2];
+    ASSERT_EQ(::pipe(ready), 0);
+    const pid_t pid = ::fork();
+    ASSERT_GE(pid, 0);
+    if (pid == 0) {
+      ::close(ready[0]);
+      int code = 0;
+      try {
+        PlaceDatabase db = PlaceDatabase::Open(dir);
+        bool told = false;
+        for (int step = 0;; ++step) {  // until killed
+          const int id = 31 + step % 6;
+          if (db.FindKeyframe(id)) {
+            db.Remove(id);
+          } else {
+            db.Add(FrameOf(id), images[id - 31]);
+          }
+          if (!told) {
+            // The first change is made: the parent's clock starts now.
+            told = ::write(ready[1], "x", 1) == 1;
+          }
+          if (step % 2 == 1) db.Save();
+        }
+      } catch (...) {
+        code = 3;
+      }
+      ::_exit(code);
+    }
+    ::close(ready[1]);
+    char byte = 0;
+    const bool started = ::read(ready[0], &byte, 1) == 1;
+    ::close(ready[0]);
+    // Kill moments spread over adds, saves and removes.
+    std::this_thread::sleep_for(std::chrono::milliseconds(37 * round * round));
+    ::kill(pid, SIGKILL);
+    int status = 0;
+    ::waitpid(pid, &status, 0);
+    ASSERT_TRUE(started) << "the writer failed before its first change";
+    ASSERT_TRUE(WIFSIGNALED(status)) << "the writer ended by itself, code " << WEXITSTATUS(status);
+
+    const PlaceDatabase db = PlaceDatabase::Open(dir);
+    const nlohmann::json manifest = db.manifest();
+    std::set<std::string> named = {"manifest.json", "images",
+                                   manifest["files"]["keyframes"].get<std::string>()};
+    if (manifest.contains("index")) {
+      named.insert(manifest["index"]["vocabulary"].get<std::string>());
+      named.insert(manifest["index"]["bow"].get<std::string>());
+    }
+    std::set<std::string> top, pngs, expected_pngs;
+    for (const auto& e : fs::directory_iterator(dir)) top.insert(e.path().filename().string());
+    EXPECT_EQ(top, named);
+    for (const int32_t id : db.keyframe_ids()) {
+      expected_pngs.insert(fs::path(db.FindKeyframe(id)->image_file).filename().string());
+    }
+    for (const auto& e : fs::directory_iterator(dir + "/images"))
+      pngs.insert(e.path().filename().string());
+    EXPECT_EQ(pngs, expected_pngs);
+  }
 }
 
 TEST_P(OnlineTest, SubsetSessionsCannotChange) {

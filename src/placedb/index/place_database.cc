@@ -32,6 +32,10 @@ struct PlaceDatabase::Impl {
   ~Impl();
 
   std::string dir;
+  // Fixed at open (read without the lock: Save swaps `db`).
+  bool whole = true;                 // opened on the whole database
+  std::string subset_description;   // what it was opened on, when not
+  FeatureType feature_type = FeatureType::kOrb;
   Database db;
   BuildOptions build;
   std::unique_ptr<FeatureExtractor> extractor;
@@ -163,6 +167,9 @@ PlaceDatabase PlaceDatabase::Open(const std::string& dir, const OpenOptions& opt
   impl->dir = dir;
   impl->db = Database::Load(dir, options.subset);
   const Database& db = impl->db;
+  impl->whole = db.subset().all();
+  if (!impl->whole) impl->subset_description = db.subset().Describe();
+  impl->feature_type = db.feature_type();
   if (options.expected_features && *options.expected_features != db.feature_type()) {
     PLACEDB_THROW_INVALID("the database at ", dir, " holds ", FeatureTypeName(db.feature_type()),
                           " features but ", FeatureTypeName(*options.expected_features),
@@ -203,7 +210,7 @@ PlaceDatabase PlaceDatabase::Open(const std::string& dir, const OpenOptions& opt
 const std::string& PlaceDatabase::directory() const { return impl_->dir; }
 const BuildOptions& PlaceDatabase::build_options() const { return impl_->build; }
 const ExtractorOptions& PlaceDatabase::extractor_options() const { return impl_->build.features; }
-FeatureType PlaceDatabase::feature_type() const { return impl_->db.feature_type(); }
+FeatureType PlaceDatabase::feature_type() const { return impl_->feature_type; }
 ThreadPool* PlaceDatabase::pool() const { return impl_->pool.get(); }
 
 nlohmann::json PlaceDatabase::manifest() const {
@@ -352,9 +359,9 @@ MatchDetail PlaceDatabase::Explain(const FeatureSet& features, int32_t keyframe_
 // ---- online mapping -----------------------------------------------------------
 
 namespace {
-void RequireWholeDatabase(const Database& db, const char* what) {
-  if (!db.subset().all()) {
-    PLACEDB_THROW_INVALID("cannot ", what, " in a session opened on ", db.subset().Describe(),
+void RequireWholeDatabase(bool whole, const std::string& subset, const char* what) {
+  if (!whole) {
+    PLACEDB_THROW_INVALID("cannot ", what, " in a session opened on ", subset,
                           ": open the whole database to change it");
   }
 }
@@ -396,7 +403,7 @@ void PlaceDatabase::BeginChange() {
 }
 
 void PlaceDatabase::Add(const Frame& frame, const cv::Mat& image) {
-  RequireWholeDatabase(impl_->db, "add keyframes");
+  RequireWholeDatabase(impl_->whole, impl_->subset_description, "add keyframes");
   if (image.empty()) PLACEDB_THROW_INVALID("the image of keyframe ", frame.id, " is empty");
   if (image.depth() != CV_8U ||
       (image.channels() != 1 && image.channels() != 3 && image.channels() != 4)) {
@@ -438,7 +445,7 @@ void PlaceDatabase::Add(const Frame& frame, const cv::Mat& image) {
 }
 
 void PlaceDatabase::Add(Keyframe keyframe, const FeatureSet& features) {
-  RequireWholeDatabase(impl_->db, "add keyframes");
+  RequireWholeDatabase(impl_->whole, impl_->subset_description, "add keyframes");
   std::lock_guard<std::mutex> writer(impl_->writer);
   BeginChange();
   AddLocked(std::move(keyframe), features);
@@ -488,7 +495,7 @@ void PlaceDatabase::AddLocked(Keyframe keyframe, const FeatureSet& features) {
 
 bool PlaceDatabase::Remove(int32_t id) {
   Impl& m = *impl_;
-  RequireWholeDatabase(m.db, "remove keyframes");
+  RequireWholeDatabase(m.whole, m.subset_description, "remove keyframes");
   std::lock_guard<std::mutex> writer(m.writer);
   const int index = m.db.IndexOfId(id);
   if (index < 0 || m.removed[static_cast<size_t>(index)]) return false;
@@ -507,7 +514,7 @@ size_t PlaceDatabase::num_pending_changes() const {
 
 void PlaceDatabase::Save() {
   Impl& m = *impl_;
-  RequireWholeDatabase(m.db, "save");
+  RequireWholeDatabase(m.whole, m.subset_description, "save");
   std::lock_guard<std::mutex> writer(m.writer);
   BeginChange();
   std::vector<char> keep(m.db.size());

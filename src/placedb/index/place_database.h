@@ -14,7 +14,9 @@
 //   holds the session's read lock while it lives. A writer waits for every
 //   View and query in flight before it publishes; so a thread that holds a
 //   View must not call Add, Remove or Save (it would wait for itself), and
-//   Views are meant to be short.
+//   Views are meant to be short. Holding a View, a thread may call every
+//   const method (its nested reads never wait for a writer). A View is
+//   destroyed on the thread that took it.
 // - A query sees the keyframes as they were when it started; an addition or
 //   removal becomes visible all at once. The deadline of a query
 //   (QueryOptions::deadline_ms) starts before it waits for a writer to
