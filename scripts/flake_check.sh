@@ -23,7 +23,7 @@ if [[ ! -d $build && -d $root/$build ]]; then
 fi
 if [[ ! -f $build/CTestTestfile.cmake ]]; then
   echo "flake_check: $build is not a configured build tree (no CTestTestfile.cmake);" \
-       "build it first (make test-release, or cmake --build)" >&2
+       "build it first (make test, or cmake --build)" >&2
   exit 2
 fi
 build=$(cd "$build" && pwd)

@@ -338,6 +338,21 @@ TEST(DatabaseTest, SubsetsOpenOnlyTheirKeyframes) {
 // A saved 3-keyframe ORB database each corruption test starts from, and
 // ways to damage it: raw (the checksums catch it) or resealed (checksums
 // recomputed and the manifest updated, so the parser itself must catch it).
+
+// Offset of section `kind` in the bytes of a keyframe file (its section
+// table), or 0 with a test failure when there is none.
+uint64_t SectionOffsetIn(const std::string& bytes, uint32_t kind) {
+  for (uint32_t s = 0; s < 4; ++s) {
+    uint32_t k;
+    uint64_t offset;
+    std::memcpy(&k, &bytes[64 + 32 * s], 4);
+    std::memcpy(&offset, &bytes[64 + 32 * s + 8], 8);
+    if (k == kind) return offset;
+  }
+  ADD_FAILURE() << "no section " << kind;
+  return 0;
+}
+
 class DatabaseFileTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() { db_ = new Database(MakeDatabase(ExtractorOptions(), 3, true)); }
@@ -371,15 +386,7 @@ class DatabaseFileTest : public ::testing::Test {
   }
   // Offset of section `kind` in the saved file.
   uint64_t SectionOffset(uint32_t kind) const {
-    for (uint32_t s = 0; s < 4; ++s) {
-      uint32_t k;
-      uint64_t offset;
-      std::memcpy(&k, &bytes_[64 + 32 * s], 4);
-      std::memcpy(&offset, &bytes_[64 + 32 * s + 8], 8);
-      if (k == kind) return offset;
-    }
-    ADD_FAILURE() << "no section " << kind;
-    return 0;
+    return SectionOffsetIn(bytes_, kind);
   }
   template <typename T>
   static void Put(std::string* bytes, size_t at, T value) {
@@ -900,15 +907,7 @@ void WriteResealedDatabase(const std::string& dir, const std::string& name,
 struct FileLayout {
   explicit FileLayout(const std::string& bytes) : bytes_(bytes) {}
   uint64_t Section(uint32_t kind) const {
-    for (uint32_t s = 0; s < 4; ++s) {
-      uint32_t k;
-      uint64_t offset;
-      std::memcpy(&k, &bytes_[64 + 32 * s], 4);
-      std::memcpy(&offset, &bytes_[64 + 32 * s + 8], 8);
-      if (k == kind) return offset;
-    }
-    ADD_FAILURE() << "no section " << kind;
-    return 0;
+    return SectionOffsetIn(bytes_, kind);
   }
   size_t Record(size_t i) const { return Section(keyframe_file::kKeyframes) + 152 * i; }
   template <typename T>

@@ -45,6 +45,12 @@ class OnlineTest : public ::testing::TestWithParam<IndexKind> {
     f.timestamp = id;
     return f;
   }
+  // The features of images 41..44, the queries of the concurrent tests.
+  static std::vector<FeatureSet> QueryFeatures(const PlaceDatabase& db) {
+    std::vector<FeatureSet> queries;
+    for (int id = 41; id <= 44; ++id) queries.push_back(db.Extract(cv::imread(RtabmapImage(id))));
+    return queries;
+  }
   static QueryOptions Options() {
     QueryOptions o;
     if (GetParam() == IndexKind::kBow) {
@@ -110,14 +116,13 @@ TEST_P(OnlineTest, AddRemoveSaveReopen) {
 
 // Two threads query without pause while a writer adds and removes
 // keyframes: every answer is a consistent view (run under ThreadSanitizer in
-// make test), and afterwards every change is visible.
+// make check), and afterwards every change is visible.
 TEST_P(OnlineTest, QueriesRunWhileTheMapGrows) {
   OpenOptions open;
   open.threads = 1;
   PlaceDatabase db = PlaceDatabase::Open(Dir(), open);
   const QueryOptions options = Options();
-  std::vector<FeatureSet> queries;
-  for (int id = 41; id <= 44; ++id) queries.push_back(db.Extract(cv::imread(RtabmapImage(id))));
+  const std::vector<FeatureSet> queries = QueryFeatures(db);
   std::vector<cv::Mat> images;
   for (int id = 31; id <= 40; ++id) images.push_back(cv::imread(RtabmapImage(id)));
   std::atomic<bool> done{false};
@@ -161,8 +166,7 @@ TEST_P(OnlineTest, TwoWritersSaveAndFourReadersAtOnce) {
   open.threads = 1;
   PlaceDatabase db = PlaceDatabase::Open(Dir(), open);
   const QueryOptions options = Options();
-  std::vector<FeatureSet> queries;
-  for (int id = 41; id <= 44; ++id) queries.push_back(db.Extract(cv::imread(RtabmapImage(id))));
+  const std::vector<FeatureSet> queries = QueryFeatures(db);
   std::vector<cv::Mat> images(13);
   for (int id = 31; id <= 43; ++id) images[id - 31] = cv::imread(RtabmapImage(id));
   std::atomic<int> writers_left{3};
