@@ -282,8 +282,8 @@ void RemoveAbandonedBuilds(const fs::path& out) {
         !std::all_of(pid_text.begin(), pid_text.end(), ::isdigit)) {
       continue;
     }
-    const pid_t pid = static_cast<pid_t>(std::stol(pid_text));
-    if (pid == ::getpid() || (::kill(pid, 0) != 0 && errno == ESRCH)) {
+    const long pid = std::stol(pid_text);
+    if (pid == ::getpid() || ProcessIsGone(pid)) {
       spdlog::info("removing {}, left by a build that did not finish", entry.path().string());
       fs::remove_all(entry.path(), ec);
     }

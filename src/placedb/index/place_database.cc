@@ -126,12 +126,7 @@ void SweepDebris(const std::string& dir, const Database& db) {
                                   name != db.keyframes_file()) ||
                                  name == "keyframes.writing.bin";
     const bool stale_bow = IsBowIndexFileName(name) && name != bow_name;
-    std::error_code type_ec;
-    if ((stale_keyframes || stale_bow) && it->is_regular_file(type_ec) &&
-        !it->is_symlink(type_ec)) {
-      std::error_code remove_ec;
-      swept += fs::remove(it->path(), remove_ec) ? 1 : 0;
-    }
+    if ((stale_keyframes || stale_bow) && RemoveRegularFile(it->path().string())) ++swept;
   }
   const fs::path images = fs::path(dir) / "images";
   if (fs::is_directory(images, ec)) {
@@ -142,13 +137,8 @@ void SweepDebris(const std::string& dir, const Database& db) {
     }
     for (fs::directory_iterator it(images, ec), end; !ec && it != end; it.increment(ec)) {
       const std::string name = it->path().filename().string();
-      std::error_code type_ec;
-      if (name.size() < 5 || name.compare(name.size() - 4, 4, ".png") != 0 ||
-          named.count(name) != 0 || !it->is_regular_file(type_ec) || it->is_symlink(type_ec)) {
-        continue;
-      }
-      std::error_code remove_ec;
-      swept += fs::remove(it->path(), remove_ec) ? 1 : 0;
+      const bool png = name.size() >= 5 && name.compare(name.size() - 4, 4, ".png") == 0;
+      if (png && named.count(name) == 0 && RemoveRegularFile(it->path().string())) ++swept;
     }
   }
   if (swept > 0) spdlog::info("{}: removed {} files left by writers that did not finish", dir, swept);
@@ -473,12 +463,10 @@ void PlaceDatabase::AddLocked(Keyframe keyframe, const FeatureSet& features) {
     grown = m.db;  // reads only, as queries do
     grown->Reserve(2 * m.db.size() + 16, 2 * m.db.num_features() + rows + 4096);
     grown->AddKeyframe(keyframe, features);
-  } else {
-    // Checked before the readers are held: AddKeyframe below cannot fail.
-    Database probe(m.db.feature_type(), m.db.descriptor_bytes());
-    probe.AddKeyframe(keyframe, features);
   }
   {
+    // AddKeyframe checks everything before it changes anything: if it throws
+    // here, the session is as it was (nothing below has run).
     std::unique_lock<FairSharedMutex> publish(m.state);
     if (grown) {
       std::swap(m.db, *grown);

@@ -116,17 +116,20 @@ bool ProcessIsGone(long pid) {
   return ::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH;
 }
 
+bool RemoveRegularFile(const std::string& path) {
+  struct stat st;
+  if (::lstat(path.c_str(), &st) != 0 || !S_ISREG(st.st_mode)) return false;
+  return ::unlink(path.c_str()) == 0;
+}
+
 size_t SweepTempFiles(const std::string& dir) {
   size_t removed = 0;
   std::error_code ec;
   for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
     long pid = 0;
     const std::string name = it->path().filename().string();
-    if (!IsTempFileName(name, &pid) || !ProcessIsGone(pid)) continue;
-    std::error_code type_ec;
-    if (!it->is_regular_file(type_ec) || it->is_symlink(type_ec)) continue;
-    std::error_code remove_ec;
-    if (fs::remove(it->path(), remove_ec)) ++removed;
+    if (IsTempFileName(name, &pid) && ProcessIsGone(pid) && RemoveRegularFile(it->path().string()))
+      ++removed;
   }
   return removed;
 }

@@ -37,6 +37,10 @@ std::string TempPathFor(const std::string& path);
 bool IsTempFileName(const std::string& name, long* pid = nullptr);
 // Whether process `pid` is gone (so its temporary files are debris).
 bool ProcessIsGone(long pid);
+// Removes `path` when it is a regular file (never a symlink, which is not
+// followed, nor anything else); false when it was not removed. Errors are
+// ignored (best effort, for sweeping).
+bool RemoveRegularFile(const std::string& path);
 // Removes, directly inside `dir`, the temporary files (IsTempFileName) of
 // processes that are gone; returns how many. Errors are ignored: sweeping is
 // best effort and never fails the caller.
