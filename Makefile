@@ -10,7 +10,8 @@ JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 # The python3 on some PATHs lacks ROS's modules: CMake is given Debian's.
 CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release -DPython3_EXECUTABLE=/usr/bin/python3
 # The tests a ThreadSanitizer pass builds and runs (CTest label "threads").
-TSAN_TARGETS = util_test surf_test index_test bow_test eval_test distributed_test
+TSAN_TARGETS = util_test surf_test storage_test retrieval_test query_test build_test \
+  session_test eval_test distributed_test
 ASAN_ENV = ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 \
   UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 TSAN_ENV = OPENCV_FOR_THREADS_NUM=1 \

@@ -24,8 +24,8 @@
 
 #include "placedb/dataset/image_folder.h"
 #include "placedb/eval/metrics.h"
-#include "placedb/index/builder.h"
-#include "placedb/index/place_database.h"
+#include "placedb/build/builder.h"
+#include "placedb/session/place_database.h"
 #include "placedb/ros/testbed.h"
 
 namespace fs = std::filesystem;

@@ -55,8 +55,8 @@
 
 #include "placedb/eval/augment.h"
 #include "placedb/eval/metrics.h"
-#include "placedb/index/builder.h"
-#include "placedb/index/place_database.h"
+#include "placedb/build/builder.h"
+#include "placedb/session/place_database.h"
 #include "placedb/match/hamming.h"
 #include "placedb/util/timer.h"
 

@@ -1,10 +1,12 @@
-# placedb_add_library(NAME name SRCS a.cc b.cc DEPS lib1 lib2)
-#   One static library per module folder, exported and installed. Include
-#   paths are rooted at src/ so every header is included as
+# placedb_add_library(NAME name SRCS a.cc b.cc DEPS lib1 lib2 [INTERNAL])
+#   One static library per module folder, exported and installed as part of
+#   placedb::placedb; INTERNAL: a library of the clients (cli/, the bag
+#   reader), linked into the programs and neither installed nor exported.
+#   Include paths are rooted at src/ so every header is included as
 #   "placedb/<module>/<file>.h", in the build tree and once installed.
 set(PLACEDB_LIBRARIES "" CACHE INTERNAL "the module libraries, in build order")
 function(placedb_add_library)
-  cmake_parse_arguments(ARG "" "NAME" "SRCS;DEPS" ${ARGN})
+  cmake_parse_arguments(ARG "INTERNAL" "NAME" "SRCS;DEPS" ${ARGN})
   add_library(${ARG_NAME} STATIC ${ARG_SRCS})
   target_include_directories(${ARG_NAME} PUBLIC
     $<BUILD_INTERFACE:${PROJECT_SOURCE_DIR}/src>
@@ -14,6 +16,9 @@ function(placedb_add_library)
   target_compile_options(${ARG_NAME} PRIVATE -Wall -Wextra -Wno-unused-parameter)
   set_target_properties(${ARG_NAME} PROPERTIES POSITION_INDEPENDENT_CODE ON)
   add_library(placedb::${ARG_NAME} ALIAS ${ARG_NAME})
+  if(ARG_INTERNAL)
+    return()
+  endif()
   install(TARGETS ${ARG_NAME} EXPORT placedbTargets
     ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
     LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})

@@ -13,7 +13,8 @@ install(TARGETS placedb_all EXPORT placedbTargets)
 install(DIRECTORY src/placedb DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}
   FILES_MATCHING PATTERN "*.h"
   PATTERN "testing.h" EXCLUDE
-  PATTERN "exe" EXCLUDE)
+  PATTERN "exe" EXCLUDE
+  PATTERN "cli" EXCLUDE)
 install(FILES ${PROJECT_BINARY_DIR}/include/placedb/util/version.h
   DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/placedb/util)
 

@@ -1,6 +1,6 @@
 // where_am_i DB IMAGE: which keyframe of a placedb database shows the place
 // where IMAGE was taken, and that keyframe's pose.
-#include <placedb/index/place_database.h>
+#include <placedb/session/place_database.h>
 
 #include <cstdio>
 #include <exception>

@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "placedb/index/query.h"
+#include "placedb/query/query.h"
 
 namespace placedb {
 

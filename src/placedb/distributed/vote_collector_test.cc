@@ -7,8 +7,8 @@
 #include <random>
 
 #include "placedb/dataset/image_folder.h"
-#include "placedb/index/builder.h"
-#include "placedb/index/place_database.h"
+#include "placedb/build/builder.h"
+#include "placedb/session/place_database.h"
 #include "placedb/util/testing.h"
 
 namespace placedb {

@@ -8,9 +8,9 @@
 #include <vector>
 
 #include "placedb/feature/types.h"
-#include "placedb/index/database.h"
-#include "placedb/index/query.h"
-#include "placedb/index/ranking.h"
+#include "placedb/storage/database.h"
+#include "placedb/query/query.h"
+#include "placedb/query/ranking.h"
 
 namespace placedb {
 

@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "placedb/dataset/frame.h"
-#include "placedb/index/place_database.h"
+#include "placedb/session/place_database.h"
 
 namespace placedb {
 

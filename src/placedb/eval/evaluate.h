@@ -12,7 +12,7 @@
 
 #include "placedb/eval/ground_truth.h"
 #include "placedb/eval/metrics.h"
-#include "placedb/index/place_database.h"
+#include "placedb/session/place_database.h"
 
 namespace placedb {
 

@@ -12,8 +12,8 @@
 #include "placedb/dataset/match_truth.h"
 #include "placedb/dataset/tum.h"
 #include "placedb/eval/baseline.h"
-#include "placedb/index/builder.h"
-#include "placedb/index/place_database.h"
+#include "placedb/build/builder.h"
+#include "placedb/session/place_database.h"
 #include "placedb/util/testing.h"
 
 namespace placedb {

@@ -15,7 +15,7 @@
 #include "placedb/eval/pictures.h"
 #include "placedb/image/feature_rich_crop.h"
 #include "placedb/image/resize.h"
-#include "placedb/index/place_database.h"
+#include "placedb/session/place_database.h"
 #include "placedb/util/check.h"
 #include "placedb/util/checksum.h"
 #include "placedb/util/file_io.h"

@@ -23,8 +23,8 @@
 #include "placedb/dataset/frame.h"
 #include "placedb/eval/evaluate.h"
 #include "placedb/eval/ground_truth.h"
-#include "placedb/index/builder.h"
-#include "placedb/index/query.h"
+#include "placedb/build/builder.h"
+#include "placedb/query/query.h"
 
 namespace placedb {
 

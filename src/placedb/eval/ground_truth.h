@@ -8,7 +8,7 @@
 
 #include "placedb/dataset/frame.h"
 #include "placedb/dataset/match_truth.h"
-#include "placedb/index/database.h"
+#include "placedb/storage/database.h"
 
 namespace placedb {
 

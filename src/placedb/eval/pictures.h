@@ -11,8 +11,8 @@
 #include <vector>
 
 #include "placedb/image/feature_rich_crop.h"
-#include "placedb/index/place_database.h"
-#include "placedb/index/query.h"
+#include "placedb/session/place_database.h"
+#include "placedb/query/query.h"
 
 namespace placedb {
 

@@ -4,7 +4,8 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
-#include "placedb/exe/cli.h"
+#include "placedb/cli/flags.h"
+#include "placedb/exe/command.h"
 #include "placedb/util/check.h"
 #include "placedb/util/progress.h"
 

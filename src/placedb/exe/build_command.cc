@@ -2,8 +2,9 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
-#include "placedb/exe/cli.h"
-#include "placedb/index/builder.h"
+#include "placedb/cli/flags.h"
+#include "placedb/exe/command.h"
+#include "placedb/build/builder.h"
 #include "placedb/util/check.h"
 
 namespace placedb {

@@ -2,7 +2,8 @@
 #include <fmt/format.h>
 
 #include "placedb/eval/evaluate.h"
-#include "placedb/exe/cli.h"
+#include "placedb/cli/flags.h"
+#include "placedb/exe/command.h"
 #include "placedb/util/check.h"
 
 namespace placedb {

@@ -3,7 +3,8 @@
 #include <fmt/format.h>
 
 #include "placedb/eval/experiment.h"
-#include "placedb/exe/cli.h"
+#include "placedb/cli/flags.h"
+#include "placedb/exe/command.h"
 #include "placedb/util/check.h"
 
 namespace placedb {

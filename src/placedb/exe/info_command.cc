@@ -4,8 +4,9 @@
 #include <filesystem>
 #include <iostream>
 
-#include "placedb/exe/cli.h"
-#include "placedb/index/place_database.h"
+#include "placedb/cli/flags.h"
+#include "placedb/exe/command.h"
+#include "placedb/session/place_database.h"
 #include "placedb/util/file_io.h"
 #include "placedb/util/json_reader.h"
 

@@ -16,10 +16,10 @@
 #include <opencv2/imgcodecs.hpp>
 #include <string>
 
-#include "placedb/index/builder.h"
-#include "placedb/index/database.h"
-#include "placedb/index/keyframe_file.h"
-#include "placedb/index/query.h"
+#include "placedb/build/builder.h"
+#include "placedb/storage/database.h"
+#include "placedb/storage/keyframe_file.h"
+#include "placedb/query/query.h"
 #include "placedb/util/checksum.h"
 #include "placedb/util/testing.h"
 

@@ -10,7 +10,8 @@
 #include <opencv2/core/utils/logger.hpp>
 #include <vector>
 
-#include "placedb/exe/cli.h"
+#include "placedb/cli/flags.h"
+#include "placedb/exe/command.h"
 #include "placedb/util/file_io.h"
 #include "placedb/util/version.h"
 

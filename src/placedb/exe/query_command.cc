@@ -5,8 +5,9 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "placedb/eval/pictures.h"
-#include "placedb/exe/cli.h"
-#include "placedb/index/place_database.h"
+#include "placedb/cli/flags.h"
+#include "placedb/exe/command.h"
+#include "placedb/session/place_database.h"
 #include "placedb/util/check.h"
 #include "placedb/util/file_io.h"
 

@@ -10,8 +10,8 @@
 #include <string>
 #include <vector>
 
-#include "placedb/index/builder.h"
-#include "placedb/index/query.h"
+#include "placedb/build/builder.h"
+#include "placedb/query/query.h"
 
 namespace placedb {
 namespace python {

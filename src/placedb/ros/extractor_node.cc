@@ -5,10 +5,10 @@
 #include <placedb_msgs/Features.h>
 #include <ros/ros.h>
 
-#include "placedb/exe/cli.h"
+#include "placedb/cli/flags.h"
 #include "placedb/feature/extractor.h"
-#include "placedb/index/builder.h"
-#include "placedb/ros/image_conversion.h"
+#include "placedb/build/builder.h"
+#include "placedb/dataset/bag/image_message.h"
 #include "placedb/ros/messages.h"
 #include "placedb/ros/node_common.h"
 

@@ -11,9 +11,9 @@
 
 #include "placedb/distributed/vote_collector.h"
 #include "placedb/feature/types.h"
-#include "placedb/index/database.h"
-#include "placedb/index/keyframe_subset.h"
-#include "placedb/index/query.h"
+#include "placedb/storage/database.h"
+#include "placedb/storage/keyframe_subset.h"
+#include "placedb/query/query.h"
 
 namespace placedb {
 

@@ -8,7 +8,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "placedb/feature/extractor.h"
-#include "placedb/ros/image_conversion.h"
+#include "placedb/dataset/bag/image_message.h"
 #include "placedb/ros/node_common.h"
 #include "placedb/util/testing.h"
 

@@ -43,9 +43,9 @@
 #include <thread>
 
 #include "placedb/dataset/image_folder.h"
-#include "placedb/index/builder.h"
-#include "placedb/index/place_database.h"
-#include "placedb/ros/image_conversion.h"
+#include "placedb/build/builder.h"
+#include "placedb/session/place_database.h"
+#include "placedb/dataset/bag/image_message.h"
 #include "placedb/ros/messages.h"
 #include "placedb/ros/testbed.h"
 #include "placedb/util/file_io.h"

@@ -15,7 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include "placedb/distributed/vote_collector.h"
-#include "placedb/exe/cli.h"
+#include "placedb/cli/flags.h"
 #include "placedb/ros/messages.h"
 #include "placedb/ros/node_common.h"
 #include "placedb/util/check.h"

@@ -12,8 +12,8 @@
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgcodecs.hpp>
 
-#include "placedb/exe/cli.h"
-#include "placedb/ros/image_conversion.h"
+#include "placedb/cli/flags.h"
+#include "placedb/dataset/bag/image_message.h"
 #include "placedb/ros/messages.h"
 #include "placedb/ros/node_common.h"
 #include "placedb/util/check.h"

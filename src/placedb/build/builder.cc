@@ -1,0 +1,498 @@
+#include "placedb/build/builder.h"
+
+#include <fcntl.h>
+#include <signal.h>
+#include <spdlog/spdlog.h>
+#include <stdio.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cctype>
+#include <cerrno>
+#include <chrono>
+#include <ctime>
+#include <filesystem>
+#include <mutex>
+#include <opencv2/imgcodecs.hpp>
+
+#include "placedb/image/resize.h"
+#include "placedb/util/check.h"
+#include "placedb/util/checksum.h"
+#include "placedb/util/file_io.h"
+#include "placedb/util/json_reader.h"
+#include "placedb/util/options.h"
+#include "placedb/util/progress.h"
+#include "placedb/util/thread_pool.h"
+#include "placedb/util/timer.h"
+#include "placedb/util/version.h"
+
+namespace placedb {
+namespace fs = std::filesystem;
+
+const char* CropModeName(CropMode mode) { return mode == CropMode::kChroma ? "chroma" : "none"; }
+
+CropMode ParseCropMode(const std::string& name) {
+  if (name == "none") return CropMode::kNone;
+  if (name == "chroma") return CropMode::kChroma;
+  PLACEDB_THROW_INVALID("unknown crop mode '", name, "' (expected none or chroma)");
+}
+
+const char* IndexKindName(IndexKind kind) { return kind == IndexKind::kBow ? "bow" : "none"; }
+
+IndexKind ParseIndexKind(const std::string& name) {
+  if (name == "none") return IndexKind::kNone;
+  if (name == "bow") return IndexKind::kBow;
+  PLACEDB_THROW_INVALID("unknown index '", name, "' (expected none or bow)");
+}
+
+std::string BuildOptions::Check() const {
+  if (crop != CropMode::kNone && crop != CropMode::kChroma) return "crop is unknown";
+  if (index != IndexKind::kNone && index != IndexKind::kBow) return "index is unknown";
+  if (!IsValidAreaDivisor(resize))
+    return "resize must be 1, 4 or 16 (got " + std::to_string(resize) + ")";
+  return FirstReason({CheckRange("png_compression", png_compression, 0, 9),
+                      CheckRange("threads", threads, 0, 1024),
+                      Nested("crop_options", crop_options.Check()),
+                      Nested("features", features.Check()),
+                      Nested("vocabulary", vocabulary.Check()), Nested("bow", bow.Check())});
+}
+
+ProcessedFrame ProcessFrame(const Frame& frame, const cv::Mat& image, const BuildOptions& options,
+                            const FeatureExtractor& extractor) {
+  ProcessedFrame out;
+  Keyframe& k = out.keyframe;
+  k.id = frame.id;
+  k.timestamp = frame.timestamp;
+  k.pose = frame.pose;
+  k.source = frame.image_path;
+  k.original_size = image.size();
+  k.crop = cv::Rect(0, 0, image.cols, image.rows);
+  if (options.crop == CropMode::kChroma) {
+    const CropResult crop = SelectFeatureRichCrop(image, options.crop_options);
+    k.crop = crop.roi;
+    k.crop_channel = crop.channel;
+  }
+  const cv::Mat cropped = image(k.crop);
+  out.stored_image = ResizeByArea(cropped, options.resize);
+  if (out.stored_image.data == cropped.data && !cropped.isContinuous()) {
+    out.stored_image = cropped.clone();
+  }
+  k.stored_size = out.stored_image.size();
+  k.scale = cropped.cols > 0 ? static_cast<double>(k.stored_size.width) / cropped.cols : 1.0;
+  const bool whole = k.crop == cv::Rect(0, 0, image.cols, image.rows);
+  if (!options.extract_in_context || whole) {
+    out.features = extractor.Extract(out.stored_image);
+    return out;
+  }
+  // Features of the resized whole frame that fall inside the (resized) crop,
+  // moved into the stored image's frame.
+  const cv::Mat resized = ResizeByArea(image, options.resize);
+  const double s = SideScaleForAreaDivisor(options.resize);
+  const FeatureSet all = extractor.Extract(resized);
+  out.features.type = all.type;
+  out.features.descriptors = cv::Mat(0, all.descriptors.cols, all.descriptors.type());
+  const cv::Rect_<double> roi(k.crop.x * s, k.crop.y * s, k.stored_size.width,
+                              k.stored_size.height);
+  std::vector<int> keep;
+  for (size_t i = 0; i < all.keypoints.size(); ++i) {
+    const cv::Point2f& p = all.keypoints[i].pt;
+    if (p.x >= roi.x && p.y >= roi.y && p.x < roi.x + roi.width && p.y < roi.y + roi.height) {
+      keep.push_back(static_cast<int>(i));
+    }
+  }
+  if (keep.empty()) return out;
+  out.features.descriptors.create(static_cast<int>(keep.size()), all.descriptors.cols,
+                                  all.descriptors.type());
+  for (size_t j = 0; j < keep.size(); ++j) {
+    cv::KeyPoint kp = all.keypoints[keep[j]];
+    kp.pt.x -= static_cast<float>(roi.x);
+    kp.pt.y -= static_cast<float>(roi.y);
+    out.features.keypoints.push_back(kp);
+    all.descriptors.row(keep[j]).copyTo(out.features.descriptors.row(static_cast<int>(j)));
+  }
+  return out;
+}
+
+// JSON forms of the options structs (field names = member names).
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(CropOptions, smooth_sigma, percentile, padding,
+                                   min_fast_keypoints, fast_threshold, fast_nonmax,
+                                   min_region_pixels)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(OrbOptions, max_features, scale_factor, num_levels,
+                                   edge_threshold, fast_threshold, patch_size)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(SurfOptions, hessian_threshold, num_octaves, num_octave_layers,
+                                   extended, upright, max_features)
+
+nlohmann::json BuildReportToJson(const BuildReport& r, const std::string& database) {
+  return {{"database", database},
+          {"num_frames", r.num_frames},
+          {"num_keyframes", r.num_keyframes},
+          {"num_skipped", r.num_skipped},
+          {"skipped", r.skipped},
+          {"num_cropped", r.num_cropped},
+          {"num_features", r.num_features},
+          {"image_bytes", r.image_bytes},
+          {"feature_bytes", r.feature_bytes},
+          {"full_png_bytes", r.full_png_bytes},
+          {"index_bytes", r.index_bytes},
+          {"seconds", r.seconds}};
+}
+
+nlohmann::json BuildSettingsToJson(const BuildOptions& o) {
+  nlohmann::json j;
+  j["crop"] = CropModeName(o.crop);
+  j["crop_options"] = o.crop_options;
+  j["resize"] = o.resize;
+  j["store_images"] = o.store_images;
+  j["extract_in_context"] = o.extract_in_context;
+  j["png_compression"] = o.png_compression;
+  j["features"]["type"] = FeatureTypeName(o.features.type);
+  j["features"]["orb"] = o.features.orb;
+  j["features"]["surf"] = o.features.surf;
+  j["features"]["upscale_below"] = o.features.upscale_below;
+  j["index"] = IndexKindName(o.index);
+  if (o.index == IndexKind::kBow) {
+    const VocabularyOptions& v = o.vocabulary;
+    if (o.vocabulary_file.empty()) {
+      j["vocabulary"] = {{"branching", v.branching},
+                         {"depth", v.depth},
+                         {"iterations", v.iterations},
+                         {"max_training_descriptors", v.max_training_descriptors},
+                         {"seed", v.seed}};
+    } else {
+      j["vocabulary_file"] = o.vocabulary_file;
+    }
+    j["bow"] = {{"direct_level", o.bow.direct_level}};
+  }
+  return j;
+}
+
+BuildOptions BuildOptionsFromManifest(const nlohmann::json& manifest, const std::string& dir) {
+  const JsonReader m(manifest, dir + "/manifest.json", /*runtime_errors=*/true);
+  const JsonReader s = m.Child("settings");
+  BuildOptions o;
+  try {
+    o.crop = ParseCropMode(s.String("crop"));
+    o.features.type = ParseFeatureType(s.Child("features").String("type"));
+  } catch (const std::invalid_argument& e) {
+    PLACEDB_THROW_RUNTIME(dir, "/manifest.json: ", e.what());
+  }
+  o.resize = static_cast<int>(s.Integer("resize", 1, 16));
+  s.Read("store_images", &o.store_images);
+  s.Read("extract_in_context", &o.extract_in_context);
+  s.Read("png_compression", &o.png_compression);
+  if (s.Has("crop_options")) {
+    const JsonReader c = s.Child("crop_options");
+    CropOptions& co = o.crop_options;
+    c.Read("smooth_sigma", &co.smooth_sigma);
+    c.Read("percentile", &co.percentile);
+    c.Read("padding", &co.padding);
+    c.Read("min_fast_keypoints", &co.min_fast_keypoints);
+    c.Read("fast_threshold", &co.fast_threshold);
+    c.Read("fast_nonmax", &co.fast_nonmax);
+    c.Read("min_region_pixels", &co.min_region_pixels);
+  }
+  const JsonReader f = s.Child("features");
+  // A manifest without the field predates small-frame upscaling: its
+  // keyframes were extracted without it, and so are its queries.
+  o.features.upscale_below = 0;
+  f.Read("upscale_below", &o.features.upscale_below);
+  const JsonReader orb = f.Child("orb");
+  OrbOptions& oo = o.features.orb;
+  orb.Read("max_features", &oo.max_features);
+  orb.Read("scale_factor", &oo.scale_factor);
+  orb.Read("num_levels", &oo.num_levels);
+  orb.Read("edge_threshold", &oo.edge_threshold);
+  orb.Read("fast_threshold", &oo.fast_threshold);
+  orb.Read("patch_size", &oo.patch_size);
+  const JsonReader surf = f.Child("surf");
+  SurfOptions& so = o.features.surf;
+  surf.Read("hessian_threshold", &so.hessian_threshold);
+  surf.Read("num_octaves", &so.num_octaves);
+  surf.Read("num_octave_layers", &so.num_octave_layers);
+  surf.Read("extended", &so.extended);
+  surf.Read("upright", &so.upright);
+  surf.Read("max_features", &so.max_features);
+  // A manifest without the field predates retrieval indexes.
+  if (s.Has("index")) {
+    try {
+      o.index = ParseIndexKind(s.String("index"));
+    } catch (const std::invalid_argument& e) {
+      PLACEDB_THROW_RUNTIME(dir, "/manifest.json: settings: ", e.what());
+    }
+  }
+  if (o.index == IndexKind::kBow) {
+    if (s.Has("vocabulary")) {
+      const JsonReader v = s.Child("vocabulary");
+      VocabularyOptions& vo = o.vocabulary;
+      v.Read("branching", &vo.branching);
+      v.Read("depth", &vo.depth);
+      v.Read("iterations", &vo.iterations);
+      v.Read("max_training_descriptors", &vo.max_training_descriptors);
+      vo.seed = v.Unsigned("seed");
+    }
+    if (s.Has("vocabulary_file")) o.vocabulary_file = s.String("vocabulary_file");
+    s.Child("bow").Read("direct_level", &o.bow.direct_level);
+  }
+  const std::string reason = o.Check();
+  if (!reason.empty()) PLACEDB_THROW_RUNTIME(dir, "/manifest.json: settings: ", reason);
+  return o;
+}
+
+namespace {
+
+std::string NowIso8601() {
+  const std::time_t now = std::time(nullptr);
+  char buf[32];
+  std::strftime(buf, sizeof(buf), "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&now));
+  return buf;
+}
+
+bool LooksLikeDatabase(const fs::path& dir) {
+  std::error_code ec;
+  if (fs::exists(dir / Database::kManifestFile, ec)) return true;
+  for (const auto& entry : fs::directory_iterator(dir, ec)) {
+    if (Database::IsKeyframesFileName(entry.path().filename().string())) return true;
+  }
+  return false;
+}
+
+// The output directory as one absolute path with a file name: "db/", "db/."
+// and "x/../db" all mean db.
+fs::path NormalizeOutputPath(const std::string& out_dir) {
+  fs::path p = fs::absolute(out_dir).lexically_normal();
+  while (!p.has_filename() && p.has_parent_path() && p != p.root_path()) p = p.parent_path();
+  if (p.filename() == "." || p.filename() == "..") p = fs::weakly_canonical(p);
+  if (p == p.root_path() || p.filename().empty()) {
+    PLACEDB_THROW_INVALID("cannot build a database at ", out_dir, " (", p.string(), ")");
+  }
+  return p;
+}
+
+// Removes "<out>.building.<pid>" folders that builds killed before they
+// finished left behind: those whose process is gone.
+void RemoveAbandonedBuilds(const fs::path& out) {
+  std::error_code ec;
+  const std::string prefix = out.filename().string() + ".building.";
+  for (const auto& entry : fs::directory_iterator(out.parent_path(), ec)) {
+    const std::string name = entry.path().filename().string();
+    if (name.compare(0, prefix.size(), prefix) != 0 || !entry.is_directory(ec)) continue;
+    const std::string pid_text = name.substr(prefix.size());
+    if (pid_text.empty() || pid_text.size() > 9 ||
+        !std::all_of(pid_text.begin(), pid_text.end(), ::isdigit)) {
+      continue;
+    }
+    const long pid = std::stol(pid_text);
+    if (pid == ::getpid() || ProcessIsGone(pid)) {
+      spdlog::info("removing {}, left by a build that did not finish", entry.path().string());
+      fs::remove_all(entry.path(), ec);
+    }
+  }
+}
+
+// Moves the finished temporary directory to `out`. With an existing
+// database at `out`, the two directories are exchanged atomically
+// (renameat2 RENAME_EXCHANGE) and the old one is then deleted.
+void CommitDirectory(const fs::path& tmp, const fs::path& out) {
+  SyncDirectory(tmp.string());
+  std::error_code ec;
+  if (!fs::exists(out, ec)) {
+    fs::rename(tmp, out);
+  } else {
+#ifdef RENAME_EXCHANGE
+    if (::renameat2(AT_FDCWD, tmp.c_str(), AT_FDCWD, out.c_str(), RENAME_EXCHANGE) != 0) {
+      PLACEDB_THROW_RUNTIME("cannot replace ", out.string(), ": ", std::strerror(errno));
+    }
+    fs::remove_all(tmp);  // now holds the old database
+#else
+    const fs::path old = out.string() + ".old";
+    fs::rename(out, old);
+    fs::rename(tmp, out);
+    fs::remove_all(old);
+#endif
+  }
+  SyncDirectory(out.parent_path().empty() ? "." : out.parent_path().string());
+}
+
+}  // namespace
+
+std::string SaveBowIndexFile(const BowIndex& index, const std::string& dir) {
+  const std::string name = "bow." + ChecksumHex(index.checksum()) + ".bin";
+  index.Save((fs::path(dir) / name).string());
+  return name;
+}
+
+bool IsBowIndexFileName(const std::string& name) {
+  if (name.size() != 24 || name.compare(0, 4, "bow.") != 0 || name.compare(20, 4, ".bin") != 0)
+    return false;
+  return std::all_of(name.begin() + 4, name.begin() + 20,
+                     [](char c) { return std::isdigit(c) || (c >= 'a' && c <= 'f'); });
+}
+
+namespace {
+
+// The bag-of-words index files of a database, written into its directory.
+struct IndexFiles {
+  nlohmann::json manifest;  // the manifest's "index" entry
+  uint64_t bytes = 0;
+};
+
+IndexFiles WriteBowIndex(const Database& db, const BuildOptions& options, const std::string& dir,
+                         ThreadPool* pool) {
+  std::shared_ptr<const Vocabulary> vocabulary;
+  if (!options.vocabulary_file.empty()) {
+    auto given = std::make_shared<Vocabulary>(Vocabulary::Open(options.vocabulary_file));
+    if (given->type() != db.feature_type() || given->row_bytes() != db.descriptor_bytes()) {
+      PLACEDB_THROW_INVALID("vocabulary ", options.vocabulary_file, " is for ",
+                            FeatureTypeName(given->type()), " descriptors of ", given->row_bytes(),
+                            " bytes, the database holds ", FeatureTypeName(db.feature_type()),
+                            " descriptors of ", db.descriptor_bytes(), " bytes");
+    }
+    vocabulary = std::move(given);
+  } else {
+    std::vector<DescriptorBlock> blocks;
+    blocks.reserve(db.size());
+    for (size_t i = 0; i < db.size(); ++i) blocks.push_back(db.Descriptors(i));
+    ProgressBar progress("vocabulary", Vocabulary::TrainingWork(blocks, options.vocabulary),
+                         options.progress);
+    vocabulary = std::make_shared<Vocabulary>(
+        Vocabulary::Train(blocks, options.vocabulary, pool, &progress));
+    progress.Finish();
+  }
+  ProgressBar progress("bow index", db.size(), options.progress);
+  const BowIndex index = BowIndex::Build(vocabulary, db, options.bow, pool, &progress);
+  progress.Finish();
+  const fs::path vocabulary_path = fs::path(dir) / kVocabularyFile;
+  vocabulary->Save(vocabulary_path.string());
+  const std::string index_name = SaveBowIndexFile(index, dir);
+  const fs::path index_path = fs::path(dir) / index_name;
+  IndexFiles files;
+  files.bytes = fs::file_size(vocabulary_path) + fs::file_size(index_path);
+  files.manifest = {{"kind", "bow"},
+                    {"vocabulary", kVocabularyFile},
+                    {"vocabulary_words", vocabulary->num_words()},
+                    {"bow", index_name}};
+  return files;
+}
+
+}  // namespace
+
+BuildReport BuildDatabase(const std::vector<Frame>& frames, const BuildOptions& options,
+                          const std::string& out_dir, const std::string& source_description) {
+  PLACEDB_CHECK_OPTIONS(options);
+  PLACEDB_CHECK(!out_dir.empty(), "an output directory is needed");
+  Timer timer;
+  const fs::path out = NormalizeOutputPath(out_dir);
+  std::error_code ec;
+  if (fs::exists(out, ec)) {
+    if (!fs::is_directory(out, ec)) {
+      PLACEDB_THROW_INVALID("output path exists and is not a directory: ", out.string());
+    }
+    const bool empty = fs::is_empty(out, ec);
+    if (!empty && !LooksLikeDatabase(out)) {
+      PLACEDB_THROW_INVALID("output directory ", out.string(),
+                            " is not empty and is not a placedb database; refusing to replace it");
+    }
+    if (!empty && !options.overwrite) {
+      PLACEDB_THROW_INVALID("a database already exists at ", out.string(),
+                            " (use --overwrite to replace it)");
+    }
+  }
+  if (frames.empty()) PLACEDB_THROW_INVALID("no frames to build a database from");
+  fs::create_directories(out.parent_path());
+  RemoveAbandonedBuilds(out);
+  const fs::path tmp = out.string() + ".building." + std::to_string(::getpid());
+  fs::remove_all(tmp);
+  fs::create_directories(tmp / "images");
+
+  try {
+    const auto extractor = FeatureExtractor::Create(options.features);
+    const std::vector<int> png_params = {cv::IMWRITE_PNG_COMPRESSION, options.png_compression};
+    std::vector<std::optional<ProcessedFrame>> results(frames.size());
+    std::vector<uint64_t> full_png(frames.size(), 0);
+    std::vector<uint64_t> stored_png(frames.size(), 0);
+    ProgressBar progress("building", frames.size(), options.progress);
+    ThreadPool pool(options.threads);
+    pool.ParallelFor(frames.size(), [&](size_t i) {
+      const Frame& frame = frames[i];
+      cv::Mat image = LoadFrameImage(frame);
+      if (image.empty()) {
+        if (options.strict) {
+          PLACEDB_THROW_RUNTIME("cannot read image ", frame.image_path, " (frame ", frame.id,
+                                "; --strict)");
+        }
+        progress.Advance();
+        return;
+      }
+      ProcessedFrame processed = ProcessFrame(frame, image, options, *extractor);
+      std::vector<uint8_t> buffer;
+      cv::imencode(".png", image, buffer, png_params);
+      full_png[i] = buffer.size();
+      if (options.store_images) {
+        buffer.clear();
+        cv::imencode(".png", processed.stored_image, buffer, png_params);
+        char name[32];
+        std::snprintf(name, sizeof(name), "images/%06d.png", frame.id);
+        processed.keyframe.image_file = name;
+        WriteFileAtomic((tmp / name).string(),
+                        std::string(reinterpret_cast<const char*>(buffer.data()), buffer.size()));
+        stored_png[i] = buffer.size();
+      }
+      processed.stored_image.release();
+      results[i] = std::move(processed);
+      progress.Advance();
+    });
+    progress.Finish();
+
+    BuildReport report;
+    report.num_frames = frames.size();
+    Database db(options.features.type, DescriptorBytes(options.features));
+    for (size_t i = 0; i < frames.size(); ++i) {
+      if (!results[i]) {
+        spdlog::warn("skipped unreadable image {} (frame {})", frames[i].image_path, frames[i].id);
+        report.skipped.push_back(frames[i].image_path);
+        continue;
+      }
+      if (results[i]->keyframe.crop_channel >= 0) ++report.num_cropped;
+      report.full_png_bytes += full_png[i];
+      report.image_bytes += stored_png[i];
+      db.AddKeyframe(std::move(results[i]->keyframe), results[i]->features);
+      results[i].reset();
+    }
+    report.num_skipped = report.skipped.size();
+    report.num_keyframes = db.size();
+    report.num_features = db.num_features();
+    if (db.empty()) {
+      PLACEDB_THROW_RUNTIME("none of the ", frames.size(),
+                            " images could be read; no database built");
+    }
+    if (!options.store_images) fs::remove_all(tmp / "images");
+
+    nlohmann::json& info = db.info();
+    info["settings"] = BuildSettingsToJson(options);
+    info["source"] = source_description;
+    info["created"] = NowIso8601();
+    info["placedb_version"] = kPlacedbVersion;
+    info["counts"]["frames"] = report.num_frames;
+    info["counts"]["skipped_images"] = report.num_skipped;
+    info["counts"]["cropped"] = report.num_cropped;
+    info["bytes"]["images"] = report.image_bytes;
+    info["bytes"]["full_frames_png"] = report.full_png_bytes;
+    if (options.index == IndexKind::kBow) {
+      const IndexFiles files = WriteBowIndex(db, options, tmp.string(), &pool);
+      info["index"] = files.manifest;
+      info["bytes"]["index"] = files.bytes;
+      report.index_bytes = files.bytes;
+    }
+    report.feature_bytes = db.Save(tmp.string()).keyframes_bytes;
+    CommitDirectory(tmp, out);
+    report.seconds = timer.ElapsedSeconds();
+    return report;
+  } catch (...) {
+    std::error_code ignore;
+    fs::remove_all(tmp, ignore);
+    throw;
+  }
+}
+
+}  // namespace placedb

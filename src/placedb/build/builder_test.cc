@@ -1,0 +1,621 @@
+#include "placedb/build/builder.h"
+
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <opencv2/core/utility.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <random>
+#include <string>
+#include <thread>
+
+#include "placedb/dataset/image_folder.h"
+#include "placedb/util/file_io.h"
+#include "placedb/util/testing.h"
+
+namespace placedb {
+namespace {
+using testing_util::TempDir;
+using testing_util::ThrowsWith;
+namespace fs = std::filesystem;
+
+const std::string kImages = PLACEDB_DATA_DIR "/rtabmap_loop/images";
+
+BuildOptions SmallBuild() {
+  BuildOptions options;
+  options.threads = 2;
+  options.progress = false;
+  return options;
+}
+
+void WriteBytes(const std::string& path, const std::string& bytes) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+}
+
+// The bytes of the keyframe file the database at `dir` names.
+std::string KeyframeFile(const std::string& dir) {
+  const nlohmann::json m = nlohmann::json::parse(ReadFileToString(dir + "/manifest.json"));
+  return ReadFileToString(dir + "/" + m["files"]["keyframes"].get<std::string>());
+}
+
+// Names of entries in `dir` containing ".building.".
+std::vector<std::string> BuildingLeftovers(const std::string& dir) {
+  std::vector<std::string> found;
+  for (const auto& entry : fs::directory_iterator(dir)) {
+    const std::string name = entry.path().filename().string();
+    if (name.find(".building.") != std::string::npos) found.push_back(name);
+  }
+  return found;
+}
+
+TEST(BuilderTest, CropModesAndResizeFactors) {
+  TempDir tmp;
+  const std::vector<Frame> frames = ListImageFolder(kImages, 1, 10);
+  ASSERT_EQ(frames.size(), 10u);
+  for (CropMode crop : {CropMode::kNone, CropMode::kChroma}) {
+    for (int resize : {1, 4, 16}) {
+      SCOPED_TRACE(std::string("crop ") + CropModeName(crop) + " resize " + std::to_string(resize));
+      BuildOptions options = SmallBuild();
+      options.crop = crop;
+      options.resize = resize;
+      const std::string out =
+          tmp.Path(std::string("db_") + CropModeName(crop) + "_" + std::to_string(resize));
+      const BuildReport report = BuildDatabase(frames, options, out, "rtabmap 1..10");
+      EXPECT_EQ(report.num_frames, 10u);
+      EXPECT_EQ(report.num_keyframes, 10u);
+      EXPECT_EQ(report.num_skipped, 0u);
+      EXPECT_GT(report.num_features, 10u * (resize == 16 ? 5 : 50));
+      const Database db = Database::Load(out);
+      EXPECT_EQ(report.feature_bytes, FileSize(out + "/" + db.keyframes_file()));
+      ASSERT_EQ(db.size(), 10u);
+      EXPECT_EQ(db.num_features(), report.num_features);
+      const double side = 1.0 / std::sqrt(static_cast<double>(resize));
+      size_t cropped = 0;
+      for (size_t i = 0; i < db.size(); ++i) {
+        const Keyframe& k = db.keyframe(i);
+        EXPECT_EQ(k.id, static_cast<int>(i) + 1);
+        EXPECT_EQ(k.original_size, cv::Size(512, 384));
+        EXPECT_EQ(k.source, frames[i].image_path);
+        EXPECT_EQ(k.crop & cv::Rect(0, 0, 512, 384), k.crop);  // inside the image
+        if (crop == CropMode::kNone) {
+          EXPECT_EQ(k.crop, cv::Rect(0, 0, 512, 384));
+          EXPECT_EQ(k.crop_channel, -1);
+        }
+        if (k.crop_channel >= 0) {
+          ++cropped;
+          EXPECT_LT(k.crop.area(), 512 * 384);
+        }
+        const cv::Size expected(static_cast<int>(std::lround(k.crop.width * side)),
+                                static_cast<int>(std::lround(k.crop.height * side)));
+        EXPECT_EQ(k.stored_size, expected) << "keyframe " << k.id;
+        EXPECT_NEAR(k.scale, side, 0.02);
+        // Keypoints lie in the stored image's frame.
+        for (const cv::KeyPoint& kp : db.Keypoints(i)) {
+          EXPECT_GE(kp.pt.x, 0.f);
+          EXPECT_GE(kp.pt.y, 0.f);
+          EXPECT_LT(kp.pt.x, k.stored_size.width);
+          EXPECT_LT(kp.pt.y, k.stored_size.height);
+        }
+        char name[32];
+        std::snprintf(name, sizeof(name), "images/%06d.png", k.id);
+        EXPECT_EQ(k.image_file, name);
+        const cv::Mat png = cv::imread(out + "/" + k.image_file, cv::IMREAD_UNCHANGED);
+        ASSERT_FALSE(png.empty()) << k.image_file;
+        EXPECT_EQ(png.size(), k.stored_size);
+        EXPECT_EQ(png.channels(), 3);
+      }
+      EXPECT_EQ(report.num_cropped, cropped);
+      if (crop == CropMode::kChroma) {
+        EXPECT_GT(cropped, 0u);
+      }
+
+      const nlohmann::json& info = db.info();
+      EXPECT_EQ(info["settings"]["crop"], CropModeName(crop));
+      EXPECT_EQ(info["settings"]["resize"], resize);
+      EXPECT_EQ(info["settings"]["features"]["type"], "orb");
+      EXPECT_EQ(info["source"], "rtabmap 1..10");
+      EXPECT_EQ(info["counts"]["frames"], 10);
+      EXPECT_EQ(info["counts"]["skipped_images"], 0);
+      EXPECT_EQ(info["bytes"]["images"], report.image_bytes);
+      EXPECT_EQ(info["bytes"]["images"], DirectorySize(out + "/images"));
+      EXPECT_EQ(info["bytes"]["full_frames_png"], report.full_png_bytes);
+      if (crop == CropMode::kChroma || resize > 1) {
+        EXPECT_GT(report.full_png_bytes, report.image_bytes);
+      } else {
+        EXPECT_EQ(report.full_png_bytes, report.image_bytes);  // the same PNGs
+      }
+      if (resize == 16) {
+        EXPECT_LT(report.image_bytes * 4, report.full_png_bytes);
+      }
+      EXPECT_TRUE(BuildingLeftovers(tmp.Path()).empty());
+    }
+  }
+}
+
+TEST(BuilderTest, ExtractorOptionsRoundTripThroughManifest) {
+  TempDir tmp;
+  BuildOptions options = SmallBuild();
+  options.features.orb.max_features = 123;
+  options.features.orb.fast_threshold = 17;
+  options.features.orb.num_levels = 5;
+  options.features.orb.scale_factor = 1.3;
+  options.features.surf.hessian_threshold = 321.5;
+  options.features.surf.extended = true;
+  options.features.surf.upright = true;
+  options.features.surf.max_features = 77;
+  options.features.surf.num_octaves = 3;
+  options.store_images = false;
+  const BuildReport report =
+      BuildDatabase(ListImageFolder(kImages, 1, 3), options, tmp.Path("db"), "three images");
+  EXPECT_EQ(report.num_keyframes, 3u);
+  EXPECT_EQ(report.image_bytes, 0u);
+  EXPECT_FALSE(fs::exists(tmp.Path("db/images")));
+  const Database db = Database::Load(tmp.Path("db"));
+  for (size_t i = 0; i < db.size(); ++i) {
+    EXPECT_LE(db.FeatureCount(i), 123u);
+    EXPECT_GT(db.FeatureCount(i), 50u);
+    EXPECT_EQ(db.keyframe(i).image_file, "");
+  }
+  const BuildOptions all_back = BuildOptionsFromManifest(db.info(), "db");
+  const ExtractorOptions& back = all_back.features;
+  EXPECT_EQ(back.type, FeatureType::kOrb);
+  EXPECT_EQ(back.orb.max_features, 123);
+  EXPECT_EQ(back.orb.fast_threshold, 17);
+  EXPECT_EQ(back.orb.num_levels, 5);
+  EXPECT_EQ(back.orb.scale_factor, 1.3);
+  EXPECT_EQ(back.orb.edge_threshold, options.features.orb.edge_threshold);
+  EXPECT_EQ(back.orb.patch_size, options.features.orb.patch_size);
+  EXPECT_EQ(back.surf.hessian_threshold, 321.5);
+  EXPECT_TRUE(back.surf.extended);
+  EXPECT_TRUE(back.surf.upright);
+  EXPECT_EQ(back.surf.max_features, 77);
+  EXPECT_EQ(back.surf.num_octaves, 3);
+  EXPECT_EQ(back.surf.num_octave_layers, options.features.surf.num_octave_layers);
+  EXPECT_EQ(back.upscale_below, options.features.upscale_below);
+  EXPECT_EQ(all_back.crop, options.crop);
+  EXPECT_EQ(all_back.resize, options.resize);
+  EXPECT_EQ(all_back.store_images, false);
+  EXPECT_EQ(all_back.crop_options.percentile, options.crop_options.percentile);
+
+  // The SURF type round-trips too (manifest only, no build needed).
+  BuildOptions surf = options;
+  surf.features.type = FeatureType::kSurf;
+  nlohmann::json manifest;
+  manifest["settings"] = BuildSettingsToJson(surf);
+  EXPECT_EQ(BuildOptionsFromManifest(manifest, "m").features.type, FeatureType::kSurf);
+  // A manifest from before small-frame upscaling: its queries are not upscaled.
+  manifest["settings"]["features"].erase("upscale_below");
+  EXPECT_EQ(BuildOptionsFromManifest(manifest, "m").features.upscale_below, 0);
+}
+
+// Every setting the manifest stores reads back as it was written, at both ends
+// of its range (the vocabulary seed over all 64 bits: a seed above 2^63 was
+// once written and then refused on open).
+TEST(BuilderTest, EverySettingRoundTripsAtItsRangeLimits) {
+  auto round_trip = [](const BuildOptions& o) {
+    ASSERT_EQ(o.Check(), "");
+    nlohmann::json manifest;
+    manifest["settings"] = BuildSettingsToJson(o);
+    const BuildOptions back = BuildOptionsFromManifest(manifest, "m");
+    EXPECT_EQ(BuildSettingsToJson(back), manifest["settings"]);
+    EXPECT_EQ(back.vocabulary.seed, o.vocabulary.seed);
+    EXPECT_EQ(back.vocabulary.branching, o.vocabulary.branching);
+    EXPECT_EQ(back.features.orb.scale_factor, o.features.orb.scale_factor);
+    EXPECT_EQ(back.crop_options.min_region_pixels, o.crop_options.min_region_pixels);
+  };
+  BuildOptions lo;
+  lo.crop = CropMode::kChroma;
+  lo.resize = 1;
+  lo.png_compression = 0;
+  lo.store_images = false;
+  lo.extract_in_context = false;
+  lo.crop_options.smooth_sigma = 0.0;
+  lo.crop_options.percentile = 0.0;
+  lo.crop_options.padding = 0;
+  lo.crop_options.min_fast_keypoints = 0;
+  lo.crop_options.fast_threshold = 1;
+  lo.crop_options.fast_nonmax = false;
+  lo.crop_options.min_region_pixels = 1;
+  lo.features.type = FeatureType::kSurf;
+  lo.features.upscale_below = 0;
+  lo.features.orb.max_features = 1;
+  lo.features.orb.scale_factor = std::nextafter(1.0, 2.0);
+  lo.features.orb.num_levels = 1;
+  lo.features.orb.edge_threshold = 0;
+  lo.features.orb.fast_threshold = 1;
+  lo.features.orb.patch_size = 2;
+  lo.features.surf.hessian_threshold = 0.0;
+  lo.features.surf.num_octaves = 1;
+  lo.features.surf.num_octave_layers = 1;
+  lo.features.surf.extended = false;
+  lo.features.surf.upright = false;
+  lo.features.surf.max_features = 0;
+  lo.index = IndexKind::kBow;
+  lo.vocabulary.branching = 2;
+  lo.vocabulary.depth = 1;
+  lo.vocabulary.iterations = 1;
+  lo.vocabulary.max_training_descriptors = 1000;
+  lo.vocabulary.seed = 0;
+  lo.bow.direct_level = 0;
+  round_trip(lo);
+
+  BuildOptions hi = lo;
+  hi.crop = CropMode::kNone;
+  hi.resize = 16;
+  hi.png_compression = 9;
+  hi.store_images = true;
+  hi.extract_in_context = true;
+  hi.crop_options.smooth_sigma = 50.0;
+  hi.crop_options.percentile = 99.9;
+  hi.crop_options.padding = 4096;
+  hi.crop_options.min_fast_keypoints = 100000;
+  hi.crop_options.fast_threshold = 255;
+  hi.crop_options.fast_nonmax = true;
+  hi.crop_options.min_region_pixels = 100000000;
+  hi.features.type = FeatureType::kOrb;
+  hi.features.upscale_below = 4096;
+  hi.features.orb.max_features = 100000;
+  hi.features.orb.scale_factor = 4.0;
+  hi.features.orb.num_levels = 32;
+  hi.features.orb.edge_threshold = 512;
+  hi.features.orb.fast_threshold = 255;
+  hi.features.orb.patch_size = 512;
+  hi.features.surf.hessian_threshold = 1e6;
+  hi.features.surf.num_octaves = 8;  // SurfOptions::Check's limits
+  hi.features.surf.num_octave_layers = 8;
+  hi.features.surf.extended = true;
+  hi.features.surf.upright = true;
+  hi.features.surf.max_features = 1000000;
+  hi.vocabulary.branching = 64;
+  hi.vocabulary.depth = 4;  // 64^4 = 2^24 words, the limit
+  hi.vocabulary.iterations = 100;
+  hi.vocabulary.max_training_descriptors = 100000000;
+  hi.vocabulary.seed = UINT64_MAX;
+  hi.bow.direct_level = 4;
+  round_trip(hi);
+  hi.vocabulary.seed = (uint64_t{1} << 63) + 1;
+  round_trip(hi);
+
+  // A negative or fractional seed is refused, naming the field.
+  nlohmann::json manifest;
+  manifest["settings"] = BuildSettingsToJson(hi);
+  manifest["settings"]["vocabulary"]["seed"] = -1;
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { BuildOptionsFromManifest(manifest, "m"); },
+                                             {"seed is negative"}));
+  manifest["settings"]["vocabulary"]["seed"] = 1.5;
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { BuildOptionsFromManifest(manifest, "m"); },
+                                             {"seed is not an integer"}));
+}
+
+// A manifest is input from outside: every field is type-checked strictly and
+// range-checked; the error names the database and the field.
+TEST(BuilderTest, MalformedManifestSettingsAreRejected) {
+  nlohmann::json good;
+  good["settings"] = BuildSettingsToJson(SmallBuild());
+  EXPECT_NO_THROW(BuildOptionsFromManifest(good, "db"));
+  auto fails = [&](const std::function<void(nlohmann::json&)>& edit, const std::string& part) {
+    nlohmann::json bad = good;
+    edit(bad);
+    return ThrowsWith<std::runtime_error>([&] { BuildOptionsFromManifest(bad, "db"); },
+                                          {"db/manifest.json", part});
+  };
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m.erase("settings"); }, "settings is missing"));
+  EXPECT_TRUE(
+      fails([](nlohmann::json& m) { m["settings"]["features"].erase("orb"); }, "orb is missing"));
+  EXPECT_TRUE(
+      fails([](nlohmann::json& m) { m["settings"]["resize"] = true; }, "resize is not an integer"));
+  EXPECT_TRUE(
+      fails([](nlohmann::json& m) { m["settings"]["resize"] = 3; }, "resize must be 1, 4 or 16"));
+  EXPECT_TRUE(fails(
+      [](nlohmann::json& m) { m["settings"]["features"]["orb"]["num_levels"] = -2147483649LL; },
+      "num_levels is out of range"));
+  EXPECT_TRUE(
+      fails([](nlohmann::json& m) { m["settings"]["features"]["orb"]["num_levels"] = 100000; },
+            "features.orb.num_levels must be in [1, 32]"));
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m["settings"]["features"]["surf"]["extended"] = 1; },
+                    "extended is not true or false"));
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m["settings"]["crop_options"]["smooth_sigma"] = 1e6; },
+                    "crop_options.smooth_sigma must be in [0, 50]"));
+  EXPECT_TRUE(
+      fails([](nlohmann::json& m) { m["settings"]["crop"] = "square"; }, "unknown crop mode"));
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m["settings"]["features"]["type"] = 2; },
+                    "type is not a string"));
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m = nlohmann::json::array(); }, "not a JSON object"));
+}
+
+// Build options are range-checked (NaN included) before any work starts.
+TEST(BuilderTest, BuildOptionRanges) {
+  BuildOptions o = SmallBuild();
+  EXPECT_EQ(o.Check(), "");
+  o.crop_options.smooth_sigma = std::nan("");
+  EXPECT_NE(o.Check().find("crop_options.smooth_sigma"), std::string::npos);
+  o = SmallBuild();
+  o.crop_options.padding = 2147483647;
+  EXPECT_NE(o.Check().find("crop_options.padding"), std::string::npos);
+  o = SmallBuild();
+  o.threads = -1;
+  EXPECT_NE(o.Check().find("threads"), std::string::npos);
+  o = SmallBuild();
+  o.resize = 2;
+  EXPECT_NE(o.Check().find("resize"), std::string::npos);
+  o = SmallBuild();
+  o.png_compression = 10;
+  EXPECT_NE(o.Check().find("png_compression"), std::string::npos);
+}
+
+TEST(BuilderTest, SurfDatabase) {
+  TempDir tmp;
+  BuildOptions options = SmallBuild();
+  options.features.type = FeatureType::kSurf;
+  options.features.surf.max_features = 150;
+  options.resize = 4;
+  const BuildReport report =
+      BuildDatabase(ListImageFolder(kImages, 1, 3), options, tmp.Path("db"), "surf");
+  EXPECT_EQ(report.num_keyframes, 3u);
+  const Database db = Database::Load(tmp.Path("db"));
+  EXPECT_EQ(db.feature_type(), FeatureType::kSurf);
+  EXPECT_EQ(db.descriptor_bytes(), 256);
+  for (size_t i = 0; i < db.size(); ++i) {
+    EXPECT_GT(db.FeatureCount(i), 20u);
+    EXPECT_LE(db.FeatureCount(i), 150u);
+  }
+  EXPECT_EQ(db.info()["settings"]["features"]["type"], "surf");
+}
+
+TEST(BuilderTest, UnreadableImageIsSkippedOrFatalWhenStrict) {
+  TempDir tmp;
+  const std::string folder = tmp.Path("images");
+  fs::create_directories(folder);
+  for (const char* name : {"001.jpg", "002.jpg", "003.jpg"}) {
+    fs::copy_file(kImages + "/" + name, folder + "/" + name);
+  }
+  WriteBytes(folder + "/x.jpg", "this is not a JPEG at all");
+  const std::vector<Frame> frames = ListImageFolder(folder);
+  ASSERT_EQ(frames.size(), 4u);
+
+  const BuildReport report = BuildDatabase(frames, SmallBuild(), tmp.Path("db"), "mixed");
+  EXPECT_EQ(report.num_frames, 4u);
+  EXPECT_EQ(report.num_keyframes, 3u);
+  EXPECT_EQ(report.num_skipped, 1u);
+  ASSERT_EQ(report.skipped.size(), 1u);
+  EXPECT_EQ(fs::path(report.skipped[0]).filename(), "x.jpg");
+  const Database db = Database::Load(tmp.Path("db"));
+  EXPECT_EQ(db.size(), 3u);
+  EXPECT_EQ(db.IndexOfId(4), -1);  // x.jpg was frame 4
+  EXPECT_EQ(db.info()["counts"]["skipped_images"], 1);
+  EXPECT_EQ(db.info()["counts"]["frames"], 4);
+
+  BuildOptions strict = SmallBuild();
+  strict.strict = true;
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(
+      [&] { BuildDatabase(frames, strict, tmp.Path("strict_db"), "mixed"); }, "cannot read image"));
+  EXPECT_FALSE(fs::exists(tmp.Path("strict_db")));
+  EXPECT_TRUE(BuildingLeftovers(tmp.Path()).empty());
+}
+
+TEST(BuilderTest, ExistingDatabaseNeedsOverwrite) {
+  TempDir tmp;
+  const std::string out = tmp.Path("db");
+  BuildOptions options = SmallBuild();
+  EXPECT_EQ(BuildDatabase(ListImageFolder(kImages, 1, 5), options, out, "five").num_keyframes, 5u);
+  const std::string bin5 = KeyframeFile(out);
+
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+      [&] { BuildDatabase(ListImageFolder(kImages, 1, 8), options, out, "eight"); },
+      "a database already exists"));
+  EXPECT_EQ(KeyframeFile(out), bin5);
+
+  options.overwrite = true;
+  EXPECT_EQ(BuildDatabase(ListImageFolder(kImages, 1, 8), options, out, "eight").num_keyframes, 8u);
+  Database db = Database::Load(out);
+  EXPECT_EQ(db.size(), 8u);
+  EXPECT_EQ(db.info()["source"], "eight");
+  EXPECT_TRUE(fs::exists(out + "/images/000008.png"));
+  const std::string bin8 = KeyframeFile(out);
+  const std::string manifest8 = ReadFileToString(out + "/manifest.json");
+
+  // A failed overwrite (every image unreadable) leaves the old database as it was.
+  const std::string junk = tmp.Path("junk");
+  fs::create_directories(junk);
+  WriteBytes(junk + "/a.jpg", "garbage");
+  WriteBytes(junk + "/b.png", "more garbage");
+  const std::vector<Frame> unreadable = ListImageFolder(junk);
+  ASSERT_EQ(unreadable.size(), 2u);
+  BuildOptions strict = options;
+  strict.strict = true;
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { BuildDatabase(unreadable, strict, out, "x"); },
+                                             "cannot read image"));
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { BuildDatabase(unreadable, options, out, "x"); },
+                                             "none of the 2 images could be read"));
+  db = Database::Load(out);
+  EXPECT_EQ(db.size(), 8u);
+  EXPECT_EQ(KeyframeFile(out), bin8);
+  EXPECT_EQ(ReadFileToString(out + "/manifest.json"), manifest8);
+  EXPECT_TRUE(fs::exists(out + "/images/000008.png"));
+  EXPECT_TRUE(BuildingLeftovers(tmp.Path()).empty());
+}
+
+TEST(BuilderTest, RefusesNonDatabaseOutputs) {
+  TempDir tmp;
+  const std::vector<Frame> frames = ListImageFolder(kImages, 1, 2);
+  BuildOptions options = SmallBuild();
+  options.overwrite = true;  // even with overwrite
+  const std::string other = tmp.Path("my_documents");
+  fs::create_directories(other);
+  WriteBytes(other + "/notes.txt", "precious");
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { BuildDatabase(frames, options, other, "x"); },
+                                                "is not empty and is not a placedb database"));
+  EXPECT_EQ(ReadFileToString(other + "/notes.txt"), "precious");
+  EXPECT_FALSE(fs::exists(other + "/manifest.json"));
+
+  const std::string file = tmp.Path("a_file");
+  WriteBytes(file, "content");
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { BuildDatabase(frames, options, file, "x"); },
+                                                "is not a directory"));
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+      [&] { BuildDatabase({}, options, tmp.Path("empty_db"), "x"); }, "no frames"));
+  BuildOptions bad = options;
+  bad.resize = 2;
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+      [&] { BuildDatabase(frames, bad, tmp.Path("bad_db"), "x"); }, "resize must be 1, 4 or 16"));
+  EXPECT_FALSE(fs::exists(tmp.Path("bad_db")));
+
+  // An existing empty directory is fine.
+  const std::string empty = tmp.Path("empty_dir");
+  fs::create_directories(empty);
+  EXPECT_EQ(BuildDatabase(frames, SmallBuild(), empty, "x").num_keyframes, 2u);
+  EXPECT_EQ(Database::Load(empty).size(), 2u);
+  EXPECT_TRUE(BuildingLeftovers(tmp.Path()).empty());
+
+  // "db/", "db/." and "x/../db" name the directory db itself (they used to
+  // fail after the whole build, leaving an empty folder).
+  for (const std::string& spelled :
+       {tmp.Path("slash") + "/", tmp.Path("dot") + "/.", tmp.Path("x") + "/../up"}) {
+    EXPECT_EQ(BuildDatabase(frames, SmallBuild(), spelled, "x").num_keyframes, 2u) << spelled;
+  }
+  EXPECT_EQ(Database::Load(tmp.Path("slash")).size(), 2u);
+  EXPECT_EQ(Database::Load(tmp.Path("dot")).size(), 2u);
+  EXPECT_EQ(Database::Load(tmp.Path("up")).size(), 2u);
+  EXPECT_TRUE(BuildingLeftovers(tmp.Path()).empty());
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+      [&] { BuildDatabase(frames, SmallBuild(), "/", "x"); }, "cannot build a database at /"));
+}
+
+TEST(BuilderTest, TinyImagesGiveKeyframesWithoutFeatures) {
+  TempDir tmp;
+  const std::string folder = tmp.Path("tiny");
+  fs::create_directories(folder);
+  cv::RNG rng(7);
+  for (const char* name : {"a.png", "b.png"}) {
+    cv::Mat img(15, 20, CV_8UC3);
+    rng.fill(img, cv::RNG::UNIFORM, 0, 256);
+    ASSERT_TRUE(cv::imwrite(folder + "/" + name, img));
+  }
+  for (CropMode crop : {CropMode::kNone, CropMode::kChroma}) {
+    BuildOptions options = SmallBuild();
+    options.crop = crop;
+    options.resize = 4;
+    const std::string out = tmp.Path(std::string("db_") + CropModeName(crop));
+    const BuildReport report = BuildDatabase(ListImageFolder(folder), options, out, "tiny");
+    EXPECT_EQ(report.num_keyframes, 2u);
+    EXPECT_EQ(report.num_features, 0u);
+    const Database db = Database::Load(out);
+    ASSERT_EQ(db.size(), 2u);
+    EXPECT_EQ(db.num_features(), 0u);
+    for (size_t i = 0; i < db.size(); ++i) {
+      EXPECT_EQ(db.FeatureCount(i), 0u);
+      EXPECT_EQ(db.keyframe(i).original_size, cv::Size(20, 15));
+      EXPECT_EQ(db.Descriptors(i).rows, 0);
+    }
+    if (crop == CropMode::kNone) {
+      EXPECT_EQ(db.keyframe(0).stored_size, cv::Size(10, 8));
+    }
+  }
+}
+
+// Runs a 40-image overwrite build in a forked child and kills it (SIGKILL)
+// mid-way: the database already at the path must still load, unchanged.
+TEST(BuilderTest, KilledBuildLeavesPreviousDatabase) {
+  if (testing_util::kThreadSanitizer) GTEST_SKIP() << "forks: not under ThreadSanitizer";
+  TempDir tmp;
+  const std::string out = tmp.Path("db");
+  ASSERT_EQ(BuildDatabase(ListImageFolder(kImages, 1, 10), SmallBuild(), out, "old").num_keyframes,
+            10u);
+  const std::string old_bin = KeyframeFile(out);
+  const std::vector<Frame> frames40 = ListImageFolder(kImages, 1, 40);
+  ASSERT_EQ(frames40.size(), 40u);
+  BuildOptions child_options = SmallBuild();
+  child_options.overwrite = true;
+  child_options.crop = CropMode::kChroma;
+
+  // The child must not depend on thread pools of the parent (OpenCV's
+  // TBB workers do not survive fork): run OpenCV sequentially meanwhile.
+  struct SequentialOpenCv {
+    const int saved = cv::getNumThreads();
+    SequentialOpenCv() { cv::setNumThreads(0); }
+    ~SequentialOpenCv() { cv::setNumThreads(saved); }
+  } sequential;
+  auto spawn = [&]() -> pid_t {
+    const pid_t pid = ::fork();
+    if (pid == 0) {
+      int code = 0;
+      try {
+        BuildDatabase(frames40, child_options, out, "new");
+      } catch (...) {
+        code = 3;
+      }
+      ::_exit(code);
+    }
+    return pid;
+  };
+
+  // Kill the child at several points of its build: first wait until its
+  // temporary directory exists (the build has started, whatever the load on
+  // the machine), then let it run a little longer.
+  for (int delay_ms : {0, 20, 60, 120}) {
+    SCOPED_TRACE("kill " + std::to_string(delay_ms) + " ms into the build");
+    const pid_t pid = spawn();
+    ASSERT_GT(pid, 0);
+    const std::string building = out + ".building." + std::to_string(pid);
+    for (int waited = 0; waited < 20000 && !fs::exists(building); ++waited) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+    const bool started = fs::exists(building);
+    std::this_thread::sleep_for(std::chrono::milliseconds(delay_ms));
+    ASSERT_EQ(::kill(pid, SIGKILL), 0);
+    int status = 0;
+    ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+    ASSERT_TRUE(started) << "the child never started building";
+    ASSERT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL)
+        << "the child finished before it was killed; the test needs a slower build";
+    const Database db = Database::Load(out);
+    EXPECT_EQ(db.size(), 10u);
+    EXPECT_EQ(db.info()["source"], "old");
+    EXPECT_EQ(KeyframeFile(out), old_bin);
+    // What the killed build left behind goes with the next build of the
+    // same database (its process is gone).
+    if (delay_ms == 120) {
+      EXPECT_FALSE(BuildingLeftovers(tmp.Path()).empty());
+      BuildOptions again = SmallBuild();
+      again.overwrite = true;
+      BuildDatabase(ListImageFolder(kImages, 1, 10), again, out, "old");
+      EXPECT_TRUE(BuildingLeftovers(tmp.Path()).empty());
+    }
+    for (const std::string& left : BuildingLeftovers(tmp.Path())) fs::remove_all(tmp.Path(left));
+  }
+
+  // Left alone, the same child replaces the database (so the kills above
+  // did interrupt a build that would have succeeded).
+  const pid_t pid = spawn();
+  ASSERT_GT(pid, 0);
+  int status = 0;
+  pid_t done = 0;
+  // A generous limit (sanitizers, a busy machine): it only ends a hang.
+  for (int waited = 0; waited < 12000 && done == 0; ++waited) {
+    done = ::waitpid(pid, &status, WNOHANG);
+    if (done == 0) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  if (done == 0) {
+    ::kill(pid, SIGKILL);
+    ::waitpid(pid, &status, 0);
+    FAIL() << "the child build did not finish within 600 s";
+  }
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 0);
+  const Database db = Database::Load(out);
+  EXPECT_EQ(db.size(), 40u);
+  EXPECT_EQ(db.info()["source"], "new");
+  EXPECT_TRUE(BuildingLeftovers(tmp.Path()).empty());
+}
+
+}  // namespace
+}  // namespace placedb

@@ -1,0 +1,744 @@
+#include "placedb/query/query.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <filesystem>
+#include <iterator>
+#include <mutex>
+#include <unordered_set>
+
+#include "placedb/retrieval/clusters.h"
+#include "placedb/util/check.h"
+#include "placedb/util/json_reader.h"
+#include "placedb/util/options.h"
+#include "placedb/util/thread_pool.h"
+#include "placedb/util/timer.h"
+
+namespace placedb {
+namespace fs = std::filesystem;
+
+std::string QueryOptions::Check() const {
+  return FirstReason(
+      {CheckRange("top_k", top_k, 1, 10000), CheckRange("min_matches", min_matches, 1, 100000),
+       Nested("retrieval", retrieval.Check()), Nested("match", match.Check()),
+       Nested("verify", verify.Check()), CheckRange("min_score", min_score, 0.0, 100000.0),
+       CheckRange("deadline_ms", deadline_ms, 0.0, 1e7), Nested("prior", prior.Check())});
+}
+
+std::string QueryPrior::Check() const {
+  if (keyframe_id < 0) return "keyframe_id must be >= 0 (got " + std::to_string(keyframe_id) + ")";
+  if (pose && (!pose->translation.allFinite() || !pose->rotation.coeffs().allFinite()))
+    return "pose is not finite";
+  return "";
+}
+
+void CandidateCost::Report(double worst_ms) {
+  double old = ms_.load();
+  while (!ms_.compare_exchange_weak(old, std::max(worst_ms, 0.98 * old))) {
+  }
+}
+
+QueryOptions QueryOptions::ForPartition() const {
+  QueryOptions o = *this;
+  if (verify.enabled) o.top_k = std::max(top_k, verify.num_candidates);
+  return o;
+}
+
+bool RankedKeyframe::operator==(const RankedKeyframe& o) const {
+  const bool same_pose = pose.has_value() == o.pose.has_value() &&
+                         (!pose || (pose->translation == o.pose->translation &&
+                                    pose->rotation.coeffs() == o.pose->rotation.coeffs()));
+  return keyframe_id == o.keyframe_id && score == o.score && num_matches == o.num_matches &&
+         num_inliers == o.num_inliers && same_pose && timestamp == o.timestamp &&
+         source == o.source && stored_image == o.stored_image;
+}
+
+// ---- JSON -------------------------------------------------------------------
+namespace {
+
+nlohmann::json PoseToJson(const std::optional<Pose>& pose) {
+  if (!pose) return nullptr;
+  const auto& t = pose->translation;
+  const auto& q = pose->rotation;
+  return {{"translation", {t.x(), t.y(), t.z()}},
+          {"quaternion_xyzw", {q.x(), q.y(), q.z(), q.w()}}};
+}
+
+std::optional<Pose> PoseFromJson(const JsonReader& parent, const char* key) {
+  if (parent.Member(key).is_null()) return std::nullopt;
+  const JsonReader j = parent.Child(key);
+  auto vec = [&](const char* name, size_t n) {
+    const nlohmann::json& a = j.Member(name);
+    if (!a.is_array() || a.size() != n)
+      j.Fail(name, "is not an array of " + std::to_string(n) + " numbers");
+    std::vector<double> v;
+    for (const auto& x : a) {
+      if (!x.is_number() || !std::isfinite(x.get<double>()))
+        j.Fail(name, "holds a value that is not a finite number");
+      v.push_back(x.get<double>());
+    }
+    return v;
+  };
+  const std::vector<double> t = vec("translation", 3);
+  const std::vector<double> q = vec("quaternion_xyzw", 4);
+  Pose pose;
+  pose.translation = Eigen::Vector3d(t[0], t[1], t[2]);
+  pose.rotation = Eigen::Quaterniond(q[3], q[0], q[1], q[2]);
+  if (std::abs(pose.rotation.norm() - 1.0) > 1e-3)
+    j.Fail("quaternion_xyzw", "is not a unit quaternion");
+  return pose;
+}
+
+RankedKeyframe RankedFromJson(const JsonReader& j) {
+  RankedKeyframe r;
+  r.keyframe_id = static_cast<int32_t>(j.Integer("keyframe_id", INT32_MIN, INT32_MAX));
+  r.score = j.Number("score");
+  r.num_matches = static_cast<int>(j.Integer("num_matches", 0, INT32_MAX));
+  r.num_inliers = static_cast<int>(j.Integer("num_inliers", -1, INT32_MAX));
+  r.pose = PoseFromJson(j, "pose");
+  r.timestamp = j.Number("timestamp");
+  r.source = j.String("source");
+  r.stored_image = j.String("stored_image");
+  if (r.num_inliers > r.num_matches) j.Fail("num_inliers", "exceeds num_matches");
+  return r;
+}
+
+}  // namespace
+
+void to_json(nlohmann::json& j, const RankedKeyframe& r) {
+  j = {
+      {"keyframe_id", r.keyframe_id}, {"score", r.score},         {"num_matches", r.num_matches},
+      {"num_inliers", r.num_inliers}, {"verified", r.verified()}, {"pose", PoseToJson(r.pose)},
+      {"timestamp", r.timestamp},     {"source", r.source},       {"stored_image", r.stored_image}};
+}
+
+void from_json(const nlohmann::json& j, RankedKeyframe& r) {
+  r = RankedFromJson(JsonReader(j, "ranked keyframe"));
+}
+
+void to_json(nlohmann::json& j, const QueryResult& r) {
+  j = nlohmann::json::object();
+  j["matched"] = r.matched;
+  j["best"] = r.best() ? nlohmann::json(*r.best()) : nlohmann::json(nullptr);
+  j["ranked"] = r.ranked;
+  j["num_query_features"] = r.num_query_features;
+  j["num_keyframes"] = r.num_keyframes;
+  j["num_examined"] = r.num_examined;
+  j["num_verified"] = r.num_verified;
+  j["coverage"] = r.coverage;
+  j["deadline_reached"] = r.deadline_reached;
+  j["search"] = r.search;
+  j["cluster"] = r.cluster;
+  j["times_ms"] = {{"extract", r.times.extract_ms},
+                   {"retrieve", r.times.retrieve_ms},
+                   {"match", r.times.match_ms},
+                   {"verify", r.times.verify_ms},
+                   {"total", r.times.total_ms}};
+}
+
+void from_json(const nlohmann::json& json, QueryResult& out) {
+  const JsonReader j(json, "query result");
+  QueryResult r;
+  r.matched = j.Boolean("matched");
+  const nlohmann::json& ranked = j.Member("ranked");
+  if (!ranked.is_array()) j.Fail("ranked", "is not an array");
+  for (size_t i = 0; i < ranked.size(); ++i) {
+    r.ranked.push_back(
+        RankedFromJson(JsonReader(ranked[i], j.where() + ".ranked[" + std::to_string(i) + "]")));
+  }
+  if (r.matched && r.ranked.empty()) j.Fail("matched", "is true but nothing is ranked");
+  r.num_query_features = static_cast<int>(j.Integer("num_query_features", 0, INT32_MAX));
+  r.num_keyframes = static_cast<size_t>(j.Integer("num_keyframes", 0, INT64_MAX));
+  r.num_examined = static_cast<size_t>(j.Integer("num_examined", 0, INT64_MAX));
+  r.num_verified = static_cast<size_t>(j.Integer("num_verified", 0, INT64_MAX));
+  r.coverage = j.Number("coverage");
+  if (r.coverage < 0.0 || r.coverage > 1.0) j.Fail("coverage", "is not in [0, 1]");
+  r.deadline_reached = j.Boolean("deadline_reached");
+  r.search = j.String("search");
+  r.cluster = static_cast<int>(j.Integer("cluster", -1, INT32_MAX));
+  const JsonReader t = j.Child("times_ms");
+  r.times.extract_ms = t.Number("extract");
+  r.times.retrieve_ms = t.Number("retrieve");
+  r.times.match_ms = t.Number("match");
+  r.times.verify_ms = t.Number("verify");
+  r.times.total_ms = t.Number("total");
+  out = std::move(r);
+}
+
+// ---- the pipeline -------------------------------------------------------------
+void ValidateQueryFeatures(const FeatureSet& features, const Database& db) {
+  if (features.type != db.feature_type()) {
+    PLACEDB_THROW_INVALID("the query has ", FeatureTypeName(features.type),
+                          " features but the database holds ", FeatureTypeName(db.feature_type()),
+                          " features");
+  }
+  const cv::Mat& d = features.descriptors;
+  if (static_cast<size_t>(d.rows) != features.keypoints.size()) {
+    PLACEDB_THROW_INVALID("the query has ", features.keypoints.size(), " keypoints but ", d.rows,
+                          " descriptor rows");
+  }
+  if (features.keypoints.empty()) return;
+  const int expected_depth = db.feature_type() == FeatureType::kOrb ? CV_8U : CV_32F;
+  if (d.depth() != expected_depth || d.channels() != 1) {
+    PLACEDB_THROW_INVALID("query descriptors must be single-channel ",
+                          expected_depth == CV_8U ? "CV_8U" : "CV_32F", " for ",
+                          FeatureTypeName(db.feature_type()), " features");
+  }
+  const int row_bytes = static_cast<int>(d.cols * d.elemSize());
+  if (row_bytes != db.descriptor_bytes()) {
+    PLACEDB_THROW_INVALID("query descriptors have ", row_bytes, " bytes per row, the database's ",
+                          db.descriptor_bytes());
+  }
+  if (!d.isContinuous()) PLACEDB_THROW_INVALID("query descriptors must be stored contiguously");
+  for (size_t i = 0; i < features.keypoints.size(); ++i) {
+    const cv::Point2f& p = features.keypoints[i].pt;
+    if (!std::isfinite(p.x) || !std::isfinite(p.y))
+      PLACEDB_THROW_INVALID("query keypoint ", i, " has a non-finite position");
+  }
+  // The query image's size is not known here: positions are bounded by the
+  // largest image side.
+  const std::string bad =
+      CheckKeypoints(features.keypoints.data(), features.keypoints.size(), cv::Size());
+  if (!bad.empty()) PLACEDB_THROW_INVALID("the query ", bad);
+  if (db.feature_type() == FeatureType::kSurf &&
+      !AllFinite(d.ptr<float>(0), features.keypoints.size() * static_cast<size_t>(d.cols))) {
+    PLACEDB_THROW_INVALID("the query has a SURF descriptor value that is not finite");
+  }
+}
+
+namespace {
+
+// One examined keyframe: its index and matches (kept only while it may be
+// verified).
+struct Examined {
+  uint32_t index = 0;
+  int32_t id = 0;
+  int num_matches = 0;
+  std::vector<cv::DMatch> matches;
+};
+
+// Match-stage order: more matches first, then the lower id.
+bool MoreMatches(int32_t id_a, int a, int32_t id_b, int b) { return a != b ? a > b : id_a < id_b; }
+
+// Final order: verified ones by inliers, then matches, then id; unverified by
+// matches, then id.
+bool RanksFirst(const RankedKeyframe& a, const RankedKeyframe& b) {
+  if (a.score != b.score) return a.score > b.score;
+  return MoreMatches(a.keyframe_id, a.num_matches, b.keyframe_id, b.num_matches);
+}
+
+void KeepBest(std::vector<Examined>* list, size_t keep) {
+  auto order = [](const Examined& a, const Examined& b) {
+    return MoreMatches(a.id, a.num_matches, b.id, b.num_matches);
+  };
+  if (list->size() > keep) {
+    std::nth_element(list->begin(), list->begin() + static_cast<ptrdiff_t>(keep), list->end(),
+                     order);
+    list->resize(keep);
+  }
+  std::sort(list->begin(), list->end(), order);
+}
+
+// The verify stage on one keyframe: the matched points (the query's in its
+// image, the keyframe's mapped back to its original image) through USAC.
+VerifyResult VerifyKeyframe(const Database& db, size_t index, const FeatureSet& query,
+                            const std::vector<cv::DMatch>& matches, const VerifyOptions& options) {
+  const Keyframe& k = db.keyframe(index);
+  const Span<cv::KeyPoint> keypoints = db.Keypoints(index);
+  std::vector<cv::Point2f> q, t;
+  q.reserve(matches.size());
+  t.reserve(matches.size());
+  for (const cv::DMatch& m : matches) {
+    q.push_back(query.keypoints[m.queryIdx].pt);
+    t.push_back(k.ToOriginal(keypoints[m.trainIdx].pt));
+  }
+  return VerifyMatches(q, t, options);
+}
+
+void Decide(QueryResult* r, const QueryOptions& options) {
+  r->matched = !r->ranked.empty() && r->ranked.front().score >= options.min_score;
+}
+
+double CoverageOf(const QueryResult& r) {
+  return r.num_keyframes == 0
+             ? 0.0
+             : static_cast<double>(r.num_examined) / static_cast<double>(r.num_keyframes);
+}
+
+// How many of the match stage's best keyframes go on.
+size_t KeptAfterMatching(const QueryOptions& options) {
+  return static_cast<size_t>(options.verify.enabled ? options.verify.num_candidates
+                                                    : options.top_k);
+}
+
+// The ranked entry of an examined keyframe (its score the matches until
+// verified).
+RankedKeyframe Describe(const Database& db, const Examined& e, const std::string& image_dir) {
+  const Keyframe& k = db.keyframe(e.index);
+  RankedKeyframe r;
+  r.keyframe_id = k.id;
+  r.num_matches = e.num_matches;
+  r.score = e.num_matches;
+  r.pose = k.pose;
+  r.timestamp = k.timestamp;
+  r.source = k.source;
+  if (!k.image_file.empty()) {
+    r.stored_image =
+        image_dir.empty() ? k.image_file : (fs::path(image_dir) / k.image_file).string();
+  }
+  return r;
+}
+
+// The largest of the durations added so far (thread-safe): what the next
+// candidate is expected to cost at most.
+class WorstCost {
+ public:
+  void Add(double ms) {
+    double seen = worst_.load();
+    while (ms > seen && !worst_.compare_exchange_weak(seen, ms)) {
+    }
+  }
+  double Get() const { return worst_.load(); }
+
+ private:
+  std::atomic<double> worst_{0.0};
+};
+
+// What the match and verify stages give RunStages.
+struct Examination {
+  std::vector<RankedKeyframe> ranked;  // unsorted, every one verified when verification is on
+  size_t examined = 0;
+  size_t verified = 0;
+  bool stopped = false;  // the deadline cut the stages short
+  double match_ms = 0.0, verify_ms = 0.0;
+  double costliest_ms = 0.0;  // one candidate's match + verify at most (timed runs)
+};
+
+// No deadline: every candidate matched (contiguous chunks over the pool,
+// each keeping its best; the merged best do not depend on the chunking),
+// then the best num_candidates by matches verified, skipping those that
+// cannot reach the top k.
+Examination ExamineAll(const Database& db, const GroupedFeatures& grouped,
+                       const std::vector<Candidate>& candidates, const QueryOptions& options,
+                       const QueryContext& context) {
+  Examination out;
+  Timer stage;
+  const size_t keep = KeptAfterMatching(options);
+  const bool need_matches = options.verify.enabled;
+  const size_t n = candidates.size();
+  const size_t chunks = UsefulThreads(context.pool, n);
+  std::vector<std::vector<Examined>> partial(chunks);
+  auto match_chunk = [&](size_t c) {
+    std::vector<Examined>& kept = partial[c];
+    std::vector<cv::DMatch> matches;
+    for (size_t i = n * c / chunks; i < n * (c + 1) / chunks; ++i) {
+      const uint32_t index = candidates[i].index;
+      matches.clear();
+      const int good = MatchDescriptors(grouped.block, db.Descriptors(index), options.match,
+                                        need_matches ? &matches : nullptr);
+      if (good < options.min_matches) continue;
+      kept.push_back(
+          {index, db.keyframe(index).id, good, need_matches ? matches : std::vector<cv::DMatch>()});
+      if (kept.size() > 2 * keep + 64) KeepBest(&kept, keep);  // bounded memory
+    }
+    KeepBest(&kept, keep);
+  };
+  ForEach(context.pool, chunks, match_chunk);
+  out.examined = n;
+  std::vector<Examined> best;
+  for (auto& p : partial) {
+    for (auto& e : p) best.push_back(std::move(e));
+  }
+  KeepBest(&best, keep);
+  out.match_ms = stage.ElapsedMs();
+
+  stage.Restart();
+  std::vector<RankedKeyframe> ranked(best.size());
+  std::vector<char> done(best.size(), 0);
+  auto fill = [&](size_t i) {
+    ranked[i] = Describe(db, best[i], context.image_dir);
+    done[i] = 1;
+    if (!options.verify.enabled) return;
+    ranked[i].num_inliers =
+        VerifyKeyframe(db, best[i].index, grouped.set, best[i].matches, options.verify).num_inliers;
+    ranked[i].score = ranked[i].num_inliers;
+  };
+  const auto fill_range = [&](size_t first, size_t last) {
+    if (first < last) ForEach(context.pool, last - first, [&](size_t i) { fill(first + i); });
+  };
+  // Only what can reach the top k is verified: once k candidates are
+  // verified, one with fewer matches than the k-th best inlier count so far
+  // cannot rank among them (inliers are a subset of its matches), nor can
+  // any after it (fewer matches still). In two rounds, so that which ones
+  // are verified does not depend on the threads: the best k by matches,
+  // then those of the rest that could still rank.
+  const size_t top_k = static_cast<size_t>(options.top_k);
+  if (!options.verify.enabled || ranked.size() <= top_k) {
+    fill_range(0, ranked.size());
+  } else {
+    fill_range(0, top_k);
+    int kth = ranked[0].num_inliers;
+    for (size_t i = 1; i < top_k; ++i) kth = std::min(kth, ranked[i].num_inliers);
+    size_t last = top_k;
+    while (last < ranked.size() && best[last].num_matches >= kth) ++last;
+    fill_range(top_k, last);
+  }
+  for (size_t i = 0; i < ranked.size(); ++i) {
+    if (done[i]) out.ranked.push_back(std::move(ranked[i]));
+  }
+  if (options.verify.enabled) out.verified = out.ranked.size();
+  out.verify_ms = options.verify.enabled ? stage.ElapsedMs() : 0.0;
+  return out;
+}
+
+// Under a deadline: candidates in prior order (threads take the next from a
+// counter), each matched and, while it is among the best num_candidates by
+// matches so far, verified at once; a later candidate with more matches
+// displaces it (its verification is dropped). A candidate is started only
+// when the costliest of this query's candidates so far would still end
+// before the deadline, so a query is late only by what one candidate costs
+// beyond that; the first candidate is always examined and verified.
+Examination ExamineTimed(const Database& db, const GroupedFeatures& grouped,
+                         const std::vector<Candidate>& candidates, const QueryOptions& options,
+                         const QueryContext& context, const Deadline& deadline) {
+  Examination out;
+  const size_t keep = KeptAfterMatching(options);
+  const bool verify = options.verify.enabled;
+  const size_t n = candidates.size();
+  struct Kept {
+    Examined e;
+    RankedKeyframe r;
+  };
+  std::vector<Kept> best;  // at most keep, guarded by `mutex`
+  std::mutex mutex;
+  std::atomic<size_t> next{0}, examined{0};
+  std::atomic<bool> stopped{false};
+  WorstCost cost;
+  double match_ms = 0.0, verify_ms = 0.0;        // guarded by `mutex`
+  const auto in_best = [&](const Examined& e) {  // under `mutex`
+    if (best.size() < keep) return true;
+    const Examined& worst = best.back().e;
+    return MoreMatches(e.id, e.num_matches, worst.id, worst.num_matches);
+  };
+  const auto insert = [&](Kept k) {  // under `mutex`
+    const auto at = std::find_if(best.begin(), best.end(), [&](const Kept& b) {
+      return MoreMatches(k.e.id, k.e.num_matches, b.e.id, b.e.num_matches);
+    });
+    best.insert(at, std::move(k));
+    if (best.size() > keep) best.pop_back();
+  };
+  auto worker = [&](size_t) {
+    std::vector<cv::DMatch> matches;
+    for (;;) {
+      const size_t i = next.fetch_add(1);
+      if (i >= n) break;
+      if (i > 0 && (stopped || !deadline.Fits(cost.Get()))) {
+        stopped = true;
+        break;
+      }
+      Timer t;
+      const uint32_t index = candidates[i].index;
+      matches.clear();
+      const int good = MatchDescriptors(grouped.block, db.Descriptors(index), options.match,
+                                        verify ? &matches : nullptr);
+      examined.fetch_add(1, std::memory_order_relaxed);
+      const double matched_ms = t.ElapsedMs();
+      double verified_ms = 0.0;
+      if (good >= options.min_matches) {
+        Examined e{index, db.keyframe(index).id, good,
+                   verify ? matches : std::vector<cv::DMatch>()};
+        bool candidate;
+        {
+          std::lock_guard<std::mutex> lock(mutex);
+          candidate = in_best(e);
+        }
+        if (candidate) {
+          Kept k{std::move(e), RankedKeyframe()};
+          k.r = Describe(db, k.e, context.image_dir);
+          if (verify) {
+            Timer v;
+            k.r.num_inliers =
+                VerifyKeyframe(db, index, grouped.set, k.e.matches, options.verify).num_inliers;
+            k.r.score = k.r.num_inliers;
+            k.e.matches.clear();  // not needed any more
+            verified_ms = v.ElapsedMs();
+          }
+          std::lock_guard<std::mutex> lock(mutex);
+          if (in_best(k.e)) insert(std::move(k));
+        }
+      }
+      {
+        std::lock_guard<std::mutex> lock(mutex);
+        match_ms += matched_ms;
+        verify_ms += verified_ms;
+      }
+      cost.Add(matched_ms + verified_ms);
+    }
+  };
+  ForEach(context.pool, UsefulThreads(context.pool, n), worker);
+  for (Kept& k : best) out.ranked.push_back(std::move(k.r));
+  out.examined = examined.load();
+  if (verify) out.verified = out.ranked.size();
+  out.stopped = stopped.load();
+  out.match_ms = match_ms;
+  out.verify_ms = verify ? verify_ms : 0.0;
+  out.costliest_ms = cost.Get();
+  return out;
+}
+
+// retrieve -> match -> verify -> decide over `among` (sorted, unique, in
+// range; nullptr = the whole database) with `retriever`. `clock` started with
+// the query: the deadline is measured from it.
+QueryResult RunStages(const Database& db, const FeatureSet& query, const QueryOptions& options,
+                      const QueryContext& context, const std::vector<uint32_t>* among,
+                      const Retriever& retriever, const Timer& clock) {
+  QueryResult result;
+  result.num_query_features = static_cast<int>(query.size());
+  const uint8_t* excluded = context.excluded != nullptr ? context.excluded->data() : nullptr;
+  if (among == nullptr) {
+    result.num_keyframes = db.size() - (excluded != nullptr ? context.num_excluded : 0);
+  } else {
+    result.num_keyframes = among->size();
+    if (excluded != nullptr) {
+      for (const uint32_t i : *among) result.num_keyframes -= excluded[i];
+    }
+  }
+  result.search = RetrievalMethodName(retriever.method());
+  const Deadline deadline(clock, options.deadline_ms);
+
+  // Retrieve. Under a deadline the retriever may stop early (bag-of-words
+  // scoring of a large database takes milliseconds): the match stage then
+  // takes the candidates found so far, the first always. It stops early
+  // enough to leave one candidate's cost (the session's estimate) free.
+  Timer stage;
+  bool retrieve_stopped = false;
+  const double reserve =
+      deadline.enabled() && context.candidate_cost != nullptr ? context.candidate_cost->Get() : 0.0;
+  const Deadline retrieve_deadline =
+      deadline.enabled() ? Deadline(clock, std::max(options.deadline_ms - reserve, 1e-9))
+                         : Deadline();
+  const std::vector<Candidate> candidates =
+      retriever.Retrieve(db, query, among, excluded, retrieve_deadline, &retrieve_stopped);
+  result.times.retrieve_ms = stage.ElapsedMs();
+
+  // Match and verify. SURF: the query's rows grouped by Laplacian sign,
+  // like the database's.
+  const GroupedFeatures grouped = GroupByLaplacian(query);
+  Examination e = deadline.enabled()
+                      ? ExamineTimed(db, grouped, candidates, options, context, deadline)
+                      : ExamineAll(db, grouped, candidates, options, context);
+  if (deadline.enabled() && context.candidate_cost != nullptr && e.examined > 0)
+    context.candidate_cost->Report(e.costliest_ms);
+  result.num_examined = e.examined;
+  result.num_verified = e.verified;
+  result.times.match_ms = e.match_ms;
+  result.times.verify_ms = e.verify_ms;
+  result.deadline_reached = e.stopped || retrieve_stopped;
+
+  // Rank and decide.
+  std::vector<RankedKeyframe>& ranked = e.ranked;
+  std::sort(ranked.begin(), ranked.end(), RanksFirst);
+  if (ranked.size() > static_cast<size_t>(options.top_k)) ranked.resize(options.top_k);
+  result.ranked = std::move(ranked);
+  Decide(&result, options);
+  result.coverage = CoverageOf(result);
+  return result;
+}
+
+// The keyframes of `among` (nullptr: all of [0, n)) that are not in `local`
+// (both sorted).
+std::vector<uint32_t> Complement(size_t n, const std::vector<uint32_t>* among,
+                                 const std::vector<uint32_t>& local) {
+  std::vector<uint32_t> all;
+  if (among != nullptr) {
+    all = *among;
+  } else {
+    all.resize(n);
+    for (size_t i = 0; i < n; ++i) all[i] = static_cast<uint32_t>(i);
+  }
+  std::vector<uint32_t> out;
+  std::set_difference(all.begin(), all.end(), local.begin(), local.end(), std::back_inserter(out));
+  return out;
+}
+
+// Cluster search: the prior's clusters first, the rest only when the local
+// answer is weak; the two stages' results merge into the answer the union
+// gives (MergeQueryResults).
+QueryResult RunClusterSearch(const Database& db, const FeatureSet& query,
+                             const QueryOptions& options, const QueryContext& context,
+                             const std::vector<uint32_t>* among, const Retriever& retriever,
+                             const Timer& clock) {
+  if (context.clusters == nullptr) {
+    PLACEDB_THROW_INVALID(
+        "cluster search needs the database's clusters (open it with "
+        "PlaceDatabase::Open)");
+  }
+  const ClusterSet& clusters = *context.clusters;
+  PLACEDB_CHECK(clusters.size() == 0 || db.size() > 0, "clusters of another database");
+  int c = -1;
+  if (options.prior.keyframe_id != 0) {
+    const int index = db.IndexOfId(options.prior.keyframe_id);
+    if (index >= 0) c = clusters.ClusterOf(static_cast<uint32_t>(index));
+  } else if (options.prior.pose) {
+    c = clusters.Nearest(options.prior.pose->translation);
+  }
+  if (c < 0) {
+    QueryResult r = RunStages(db, query, options, context, among, retriever, clock);
+    r.search = "cluster+global";
+    return r;
+  }
+  const QueryOptions part = options.ForPartition();
+  std::vector<uint32_t> local = clusters.KeyframesAround(c, options.retrieval.cluster_hops);
+  if (among != nullptr) {
+    std::vector<uint32_t> both;
+    std::set_intersection(local.begin(), local.end(), among->begin(), among->end(),
+                          std::back_inserter(both));
+    local = std::move(both);
+  }
+  std::vector<QueryResult> parts;
+  parts.push_back(RunStages(db, query, part, context, &local, retriever, clock));
+  const double weak = options.retrieval.cluster_fallback_score > 0.0
+                          ? options.retrieval.cluster_fallback_score
+                          : options.min_score;
+  const QueryResult& first = parts.front();
+  const bool strong = !first.ranked.empty() && first.ranked.front().score >= weak;
+  bool fallback = false;
+  if (!strong && !first.deadline_reached) {
+    const std::vector<uint32_t> rest = Complement(db.size(), among, local);
+    if (!rest.empty()) {
+      parts.push_back(RunStages(db, query, part, context, &rest, retriever, clock));
+      fallback = true;
+    }
+  }
+  QueryResult r = MergeQueryResults(parts, options);
+  // The stages ran one after the other.
+  StageTimes sum;
+  for (const QueryResult& p : parts) {
+    sum.retrieve_ms += p.times.retrieve_ms;
+    sum.match_ms += p.times.match_ms;
+    sum.verify_ms += p.times.verify_ms;
+  }
+  r.times = sum;
+  r.search = fallback ? "cluster+fallback" : "cluster";
+  r.cluster = c;
+  return r;
+}
+
+}  // namespace
+
+QueryResult QueryDatabase(const Database& db, const FeatureSet& query, const QueryOptions& options,
+                          const QueryContext& context) {
+  PLACEDB_CHECK_OPTIONS(options);
+  ValidateQueryFeatures(query, db);
+  PLACEDB_CHECK(db.has_features(), "the database was opened as a keyframe table, without features");
+  const Timer own_clock;
+  const Timer& clock = context.clock != nullptr ? *context.clock : own_clock;
+  std::vector<uint32_t> among;
+  if (context.among != nullptr) {
+    among = *context.among;
+    std::sort(among.begin(), among.end());
+    among.erase(std::unique(among.begin(), among.end()), among.end());
+    if (!among.empty() && among.back() >= db.size()) {
+      PLACEDB_THROW_INVALID("keyframe index ", among.back(), " is out of range (the database has ",
+                            db.size(), " keyframes)");
+    }
+  }
+  if (context.excluded != nullptr) {
+    PLACEDB_CHECK(context.excluded->size() == db.size(), "the excluded mask has ",
+                  context.excluded->size(), " entries for ", db.size(), " keyframes");
+  }
+  std::unique_ptr<Retriever> own_retriever;
+  const Retriever* retriever = context.retriever;
+  if (retriever == nullptr) {
+    own_retriever = Retriever::Create(options.retrieval, db, context.bow, options.match);
+    retriever = own_retriever.get();
+  }
+  const std::vector<uint32_t>* restriction = context.among ? &among : nullptr;
+  QueryResult result =
+      options.retrieval.method == RetrievalMethod::kCluster
+          ? RunClusterSearch(db, query, options, context, restriction, *retriever, clock)
+          : RunStages(db, query, options, context, restriction, *retriever, clock);
+  result.times.total_ms = clock.ElapsedMs();
+  return result;
+}
+
+QueryResult MergeQueryResults(const std::vector<QueryResult>& parts, const QueryOptions& options) {
+  PLACEDB_CHECK_OPTIONS(options);
+  QueryResult merged;
+  std::vector<RankedKeyframe> all;
+  std::unordered_set<int32_t> seen;
+  for (const QueryResult& p : parts) {
+    merged.num_query_features = std::max(merged.num_query_features, p.num_query_features);
+    merged.num_keyframes += p.num_keyframes;
+    merged.num_examined += p.num_examined;
+    merged.num_verified += p.num_verified;
+    merged.times.extract_ms = std::max(merged.times.extract_ms, p.times.extract_ms);
+    merged.times.retrieve_ms = std::max(merged.times.retrieve_ms, p.times.retrieve_ms);
+    merged.times.match_ms = std::max(merged.times.match_ms, p.times.match_ms);
+    merged.times.verify_ms = std::max(merged.times.verify_ms, p.times.verify_ms);
+    merged.times.total_ms = std::max(merged.times.total_ms, p.times.total_ms);
+    merged.deadline_reached = merged.deadline_reached || p.deadline_reached;
+    for (const RankedKeyframe& r : p.ranked) {
+      if (!seen.insert(r.keyframe_id).second) {
+        PLACEDB_THROW_INVALID("keyframe ", r.keyframe_id,
+                              " is in two partial results (partitions must be disjoint)");
+      }
+      if (r.verified() != options.verify.enabled) {
+        PLACEDB_THROW_INVALID("keyframe ", r.keyframe_id, " is ",
+                              r.verified() ? "verified" : "not verified", " but the merge options ",
+                              options.verify.enabled ? "" : "do not ", "verify");
+      }
+      all.push_back(r);
+    }
+  }
+  // The whole database's match-stage survivors are the best of the parts'
+  // (each part kept its own best, which include all of the global best).
+  const size_t keep = KeptAfterMatching(options);
+  auto more_matches = [](const RankedKeyframe& a, const RankedKeyframe& b) {
+    return MoreMatches(a.keyframe_id, a.num_matches, b.keyframe_id, b.num_matches);
+  };
+  std::sort(all.begin(), all.end(), more_matches);
+  if (all.size() > keep) all.resize(keep);
+  std::sort(all.begin(), all.end(), RanksFirst);
+  if (all.size() > static_cast<size_t>(options.top_k)) all.resize(options.top_k);
+  merged.ranked = std::move(all);
+  Decide(&merged, options);
+  merged.coverage = CoverageOf(merged);
+  if (!parts.empty()) {
+    merged.search = parts.front().search;
+    merged.cluster = parts.front().cluster;
+  }
+  return merged;
+}
+
+MatchDetail MatchKeyframe(const Database& db, const FeatureSet& query, size_t index,
+                          const QueryOptions& options) {
+  PLACEDB_CHECK_OPTIONS(options);
+  ValidateQueryFeatures(query, db);
+  if (index >= db.size()) {
+    PLACEDB_THROW_INVALID("keyframe index ", index, " is out of range (", db.size(), " keyframes)");
+  }
+  const GroupedFeatures grouped = GroupByLaplacian(query);
+  MatchDetail d;
+  d.keyframe_id = db.keyframe(index).id;
+  MatchDescriptors(grouped.block, db.Descriptors(index), options.match, &d.matches);
+  d.query_keypoints = grouped.set.keypoints;
+  const Keyframe& k = db.keyframe(index);
+  const Span<cv::KeyPoint> keypoints = db.Keypoints(index);
+  d.keyframe_stored_points.reserve(keypoints.size());
+  d.keyframe_points.reserve(keypoints.size());
+  for (const cv::KeyPoint& kp : keypoints) {
+    d.keyframe_stored_points.push_back(kp.pt);
+    d.keyframe_points.push_back(k.ToOriginal(kp.pt));
+  }
+  if (options.verify.enabled && static_cast<int>(d.matches.size()) >= options.min_matches) {
+    VerifyResult v = VerifyKeyframe(db, index, grouped.set, d.matches, options.verify);
+    d.verified = true;
+    d.num_inliers = v.num_inliers;
+    d.inliers = v.estimated ? std::move(v.inlier_mask) : std::vector<uint8_t>(d.matches.size(), 0);
+  }
+  return d;
+}
+
+}  // namespace placedb

@@ -1,0 +1,553 @@
+#include "placedb/session/place_database.h"
+
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <mutex>
+#include <thread>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <shared_mutex>
+#include <unordered_set>
+
+#include "placedb/util/check.h"
+#include "placedb/util/fair_shared_mutex.h"
+#include "placedb/util/file_io.h"
+#include "placedb/util/json_reader.h"
+#include "placedb/util/options.h"
+#include "placedb/util/thread_pool.h"
+#include "placedb/util/timer.h"
+
+namespace placedb {
+namespace fs = std::filesystem;
+
+std::string OpenOptions::Check() const {
+  return FirstReason({Nested("subset", subset.Check()), CheckRange("threads", threads, 0, 1024),
+                      Nested("clusters", clusters.Check())});
+}
+
+struct PlaceDatabase::Impl {
+  ~Impl();
+
+  std::string dir;
+  // Fixed at open (read without the lock: Save swaps `db`).
+  bool whole = true;                 // opened on the whole database
+  std::string subset_description;   // what it was opened on, when not
+  FeatureType feature_type = FeatureType::kOrb;
+  Database db;
+  BuildOptions build;
+  std::unique_ptr<FeatureExtractor> extractor;
+  std::unique_ptr<ThreadPool> pool;
+  OpenOptions open;
+  std::shared_ptr<const Vocabulary> vocabulary;
+  std::optional<GrowingBowIndex> bow;
+  ClusterSet clusters;
+  // One candidate's cost in recent queries under a deadline.
+  mutable CandidateCost candidate_cost;
+  // Online mapping. Queries and Views hold `state` shared; a writer holds
+  // it exclusively only to publish a prepared change. Writers take `writer`
+  // first, one at a time; everything below `state` changes only under both.
+  mutable FairSharedMutex state;
+  std::mutex writer;
+  std::vector<uint8_t> removed;  // per keyframe index, 1 = removed
+  size_t num_removed = 0;
+  size_t pending = 0;
+  // Held (under `writer`) from the first change until Save: no other
+  // process changes the folder meanwhile, nor sweeps the PNGs of additions
+  // not yet saved.
+  std::unique_ptr<DirectoryLock> folder_lock;
+  // PNGs written by additions not yet saved (removed if never saved).
+  std::vector<std::string> unsaved_images;
+};
+
+PlaceDatabase::Impl::~Impl() {
+  std::error_code ignore;
+  for (const std::string& name : unsaved_images) fs::remove(fs::path(dir) / name, ignore);
+}
+
+namespace {
+
+// The bag-of-words index named by the manifest: mapped in place for the
+// whole database, rebuilt in memory from its vocabulary for a subset (the
+// stored index numbers the whole file's keyframes).
+std::optional<BowIndex> OpenBowIndex(const std::string& dir, const Database& db,
+                                     const BuildOptions& build, ThreadPool* pool,
+                                     std::shared_ptr<const Vocabulary>* vocabulary_out) {
+  const nlohmann::json& manifest = db.info();
+  if (!manifest.contains("index")) return std::nullopt;
+  const JsonReader index(manifest["index"], dir + "/manifest.json: index", true);
+  if (index.String("kind") != "bow") index.Fail("kind", "is not bow");
+  const std::string vocabulary_name = index.String("vocabulary");
+  const std::string bow_name = index.String("bow");
+  if (vocabulary_name != kVocabularyFile) index.Fail("vocabulary", "is not a vocabulary file name");
+  if (!IsBowIndexFileName(bow_name)) index.Fail("bow", "is not a bag-of-words index file name");
+  const DirectoryHandle handle(dir);
+  auto map = [&](const std::string& name) {
+    std::shared_ptr<const MappedFile> file = handle.MapFile(name);
+    if (!file) {
+      PLACEDB_THROW_RUNTIME("database ", dir, " is incomplete: ", name,
+                            " (named by its manifest) is missing");
+    }
+    return file;
+  };
+  const std::string shown_vocabulary = (fs::path(dir) / vocabulary_name).string();
+  auto vocabulary = std::make_shared<const Vocabulary>(
+      Vocabulary::FromMapped(map(vocabulary_name), shown_vocabulary));
+  if (vocabulary->type() != db.feature_type() || vocabulary->row_bytes() != db.descriptor_bytes()) {
+    PLACEDB_THROW_RUNTIME(shown_vocabulary, " is for other descriptors than the database's ",
+                          "(corrupted database)");
+  }
+  *vocabulary_out = vocabulary;
+  if (!db.subset().all()) {
+    return BowIndex::Build(vocabulary, db, build.bow, pool, nullptr);
+  }
+  return BowIndex::FromMapped(map(bow_name), (fs::path(dir) / bow_name).string(), vocabulary, db);
+}
+
+// Removes what killed writers left in the database folder `dir`, whose
+// current generation is `db` (the whole database): temporary files of
+// processes that are gone, keyframe and bag-of-words files the manifest does
+// not name, PNGs in images/ that no keyframe names. The caller holds the
+// folder's lock. Best effort: an error (a read-only folder) skips a file.
+void SweepDebris(const std::string& dir, const Database& db) {
+  std::error_code ec;
+  size_t swept = SweepTempFiles(dir) + SweepTempFiles((fs::path(dir) / "images").string());
+  std::string bow_name;
+  const nlohmann::json& manifest = db.info();
+  if (manifest.contains("index") && manifest["index"].is_object()) {
+    const auto it = manifest["index"].find("bow");
+    if (it != manifest["index"].end() && it->is_string()) bow_name = it->get<std::string>();
+  }
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    const bool stale_keyframes = (Database::IsKeyframesFileName(name) &&
+                                  name != db.keyframes_file()) ||
+                                 name == "keyframes.writing.bin";
+    const bool stale_bow = IsBowIndexFileName(name) && name != bow_name;
+    if ((stale_keyframes || stale_bow) && RemoveRegularFile(it->path().string())) ++swept;
+  }
+  const fs::path images = fs::path(dir) / "images";
+  if (fs::is_directory(images, ec)) {
+    std::unordered_set<std::string> named;
+    named.reserve(db.size());
+    for (const Keyframe& k : db.keyframes()) {
+      if (!k.image_file.empty()) named.insert(fs::path(k.image_file).filename().string());
+    }
+    for (fs::directory_iterator it(images, ec), end; !ec && it != end; it.increment(ec)) {
+      const std::string name = it->path().filename().string();
+      const bool png = name.size() >= 5 && name.compare(name.size() - 4, 4, ".png") == 0;
+      if (png && named.count(name) == 0 && RemoveRegularFile(it->path().string())) ++swept;
+    }
+  }
+  if (swept > 0) spdlog::info("{}: removed {} files left by writers that did not finish", dir, swept);
+}
+
+}  // namespace
+
+PlaceDatabase::PlaceDatabase(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+PlaceDatabase::PlaceDatabase(PlaceDatabase&&) noexcept = default;
+PlaceDatabase& PlaceDatabase::operator=(PlaceDatabase&&) noexcept = default;
+PlaceDatabase::~PlaceDatabase() = default;
+
+PlaceDatabase PlaceDatabase::Open(const std::string& dir, const OpenOptions& options) {
+  PLACEDB_CHECK_OPTIONS(options);
+  auto impl = std::make_unique<Impl>();
+  impl->dir = dir;
+  impl->db = Database::Load(dir, options.subset);
+  const Database& db = impl->db;
+  impl->whole = db.subset().all();
+  if (!impl->whole) impl->subset_description = db.subset().Describe();
+  impl->feature_type = db.feature_type();
+  if (options.expected_features && *options.expected_features != db.feature_type()) {
+    PLACEDB_THROW_INVALID("the database at ", dir, " holds ", FeatureTypeName(db.feature_type()),
+                          " features but ", FeatureTypeName(*options.expected_features),
+                          " features were asked for; rebuild it or ask for ",
+                          FeatureTypeName(db.feature_type()));
+  }
+  impl->build = BuildOptionsFromManifest(db.info(), dir);
+  const ExtractorOptions& features = impl->build.features;
+  if (features.type != db.feature_type()) {
+    PLACEDB_THROW_RUNTIME(dir, ": the manifest's feature settings say ",
+                          FeatureTypeName(features.type), " but the keyframes hold ",
+                          FeatureTypeName(db.feature_type()), " (corrupted database)");
+  }
+  if (DescriptorBytes(features) != db.descriptor_bytes()) {
+    PLACEDB_THROW_RUNTIME(dir, ": the manifest's feature settings give ", DescriptorBytes(features),
+                          "-byte descriptors but the keyframes hold ", db.descriptor_bytes(),
+                          "-byte ones (corrupted database)");
+  }
+  impl->extractor = FeatureExtractor::Create(features);
+  const int threads = options.threads == 0 ? ThreadPool::HardwareThreads() : options.threads;
+  if (threads > 1) impl->pool = std::make_unique<ThreadPool>(threads);
+  impl->open = options;
+  std::optional<BowIndex> bow =
+      OpenBowIndex(dir, db, impl->build, impl->pool.get(), &impl->vocabulary);
+  if (bow) impl->bow.emplace(std::move(*bow));
+  impl->clusters = ClusterSet::Make(db, options.clusters);
+  impl->removed.assign(db.size(), 0);
+  // Debris of killed writers goes, unless another process is changing the
+  // database (its files in progress are not debris) or we may not write.
+  if (db.subset().all() && ::access(dir.c_str(), W_OK) == 0) {
+    if (const std::unique_ptr<DirectoryLock> lock = DirectoryLock::TryLock(dir)) {
+      SweepDebris(dir, db);
+    }
+  }
+  return PlaceDatabase(std::move(impl));
+}
+
+const std::string& PlaceDatabase::directory() const { return impl_->dir; }
+const BuildOptions& PlaceDatabase::build_options() const { return impl_->build; }
+const ExtractorOptions& PlaceDatabase::extractor_options() const { return impl_->build.features; }
+FeatureType PlaceDatabase::feature_type() const { return impl_->feature_type; }
+ThreadPool* PlaceDatabase::pool() const { return impl_->pool.get(); }
+
+nlohmann::json PlaceDatabase::manifest() const {
+  std::shared_lock<FairSharedMutex> lock(impl_->state);
+  return impl_->db.info();
+}
+
+size_t PlaceDatabase::size() const {
+  std::shared_lock<FairSharedMutex> lock(impl_->state);
+  return impl_->db.size() - impl_->num_removed;
+}
+
+std::optional<Keyframe> PlaceDatabase::FindKeyframe(int32_t id) const {
+  std::shared_lock<FairSharedMutex> lock(impl_->state);
+  const int index = impl_->db.IndexOfId(id);
+  if (index < 0 || impl_->removed[static_cast<size_t>(index)]) return std::nullopt;
+  return impl_->db.keyframe(static_cast<size_t>(index));
+}
+
+std::vector<int32_t> PlaceDatabase::keyframe_ids() const {
+  std::shared_lock<FairSharedMutex> lock(impl_->state);
+  std::vector<int32_t> ids;
+  ids.reserve(impl_->db.size() - impl_->num_removed);
+  for (size_t i = 0; i < impl_->db.size(); ++i) {
+    if (!impl_->removed[i]) ids.push_back(impl_->db.keyframe(i).id);
+  }
+  return ids;
+}
+
+FeatureSet PlaceDatabase::KeyframeFeatures(int32_t id) const {
+  std::shared_lock<FairSharedMutex> lock(impl_->state);
+  const int index = impl_->db.IndexOfId(id);
+  if (index < 0 || impl_->removed[static_cast<size_t>(index)]) {
+    PLACEDB_THROW_INVALID("no keyframe ", id, " in the database ", impl_->dir);
+  }
+  return impl_->db.Features(static_cast<size_t>(index));
+}
+
+const std::vector<uint8_t>* PlaceDatabase::View::excluded() const {
+  return num_removed_ > 0 ? removed_ : nullptr;
+}
+
+PlaceDatabase::View PlaceDatabase::Read() const {
+  View view;
+  view.lock_ = std::shared_lock<FairSharedMutex>(impl_->state);
+  view.db_ = &impl_->db;
+  view.bow_ = impl_->bow ? &*impl_->bow : nullptr;
+  view.clusters_ = &impl_->clusters;
+  view.removed_ = &impl_->removed;
+  view.num_removed_ = impl_->num_removed;
+  return view;
+}
+
+std::string PlaceDatabase::StoredImagePath(const Keyframe& keyframe) const {
+  if (keyframe.image_file.empty()) return "";
+  return (fs::path(impl_->dir) / keyframe.image_file).string();
+}
+
+FeatureSet PlaceDatabase::Extract(const cv::Mat& image) const {
+  if (image.empty()) PLACEDB_THROW_INVALID("the query image is empty");
+  if (image.depth() != CV_8U ||
+      (image.channels() != 1 && image.channels() != 3 && image.channels() != 4)) {
+    PLACEDB_THROW_INVALID("the query image must be 8-bit gray, BGR or BGRA (got ", image.channels(),
+                          " channels of depth ", image.depth(), ")");
+  }
+  return impl_->extractor->Extract(image);
+}
+
+QueryResult PlaceDatabase::Run(const FeatureSet& features, const std::vector<uint32_t>* among,
+                               const QueryOptions& options, double extract_ms) const {
+  PLACEDB_CHECK_OPTIONS(options);
+  // The deadline's clock starts before the wait for a writer to publish.
+  const Timer clock;
+  std::shared_lock<FairSharedMutex> lock(impl_->state, std::defer_lock);
+  if (options.deadline_ms > 0.0) {
+    const auto until = std::chrono::steady_clock::now() +
+                       std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                           std::chrono::duration<double, std::milli>(options.deadline_ms));
+    if (!lock.try_lock_until(until)) {
+      QueryResult late;
+      late.num_query_features = static_cast<int>(features.size());
+      late.deadline_reached = true;
+      late.search = RetrievalMethodName(options.retrieval.method);
+      late.times.extract_ms = extract_ms;
+      late.times.total_ms = clock.ElapsedMs() + extract_ms;
+      return late;
+    }
+  } else {
+    lock.lock();
+  }
+  QueryContext context;
+  context.bow = impl_->bow ? &*impl_->bow : nullptr;
+  context.clusters = &impl_->clusters;
+  context.among = among;
+  // Removed keyframes (online mapping) are left out by a mask each stage
+  // tests: no per-query work for them.
+  if (impl_->num_removed > 0) {
+    context.excluded = &impl_->removed;
+    context.num_excluded = impl_->num_removed;
+  }
+  context.pool = impl_->pool.get();
+  context.image_dir = impl_->dir;
+  context.candidate_cost = &impl_->candidate_cost;
+  context.clock = &clock;
+  QueryResult r = QueryDatabase(impl_->db, features, options, context);
+  r.times.extract_ms = extract_ms;
+  r.times.total_ms += extract_ms;
+  return r;
+}
+
+QueryResult PlaceDatabase::Query(const cv::Mat& image, const QueryOptions& options) const {
+  PLACEDB_CHECK_OPTIONS(options);
+  Timer t;
+  const FeatureSet features = Extract(image);
+  return Run(features, nullptr, options, t.ElapsedMs());
+}
+
+QueryResult PlaceDatabase::Query(const FeatureSet& features, const QueryOptions& options) const {
+  return Run(features, nullptr, options, 0.0);
+}
+
+QueryResult PlaceDatabase::QueryAmong(const cv::Mat& image, const std::vector<uint32_t>& keyframes,
+                                      const QueryOptions& options) const {
+  PLACEDB_CHECK_OPTIONS(options);
+  Timer t;
+  const FeatureSet features = Extract(image);
+  return Run(features, &keyframes, options, t.ElapsedMs());
+}
+
+QueryResult PlaceDatabase::QueryAmong(const FeatureSet& features,
+                                      const std::vector<uint32_t>& keyframes,
+                                      const QueryOptions& options) const {
+  return Run(features, &keyframes, options, 0.0);
+}
+
+MatchDetail PlaceDatabase::Explain(const FeatureSet& features, int32_t keyframe_id,
+                                   const QueryOptions& options) const {
+  std::shared_lock<FairSharedMutex> lock(impl_->state);
+  const int index = impl_->db.IndexOfId(keyframe_id);
+  if (index < 0 || impl_->removed[static_cast<size_t>(index)]) {
+    PLACEDB_THROW_INVALID("no keyframe ", keyframe_id, " in the database ", impl_->dir);
+  }
+  return MatchKeyframe(impl_->db, features, static_cast<size_t>(index), options);
+}
+
+// ---- online mapping -----------------------------------------------------------
+
+namespace {
+void RequireWholeDatabase(bool whole, const std::string& subset, const char* what) {
+  if (!whole) {
+    PLACEDB_THROW_INVALID("cannot ", what, " in a session opened on ", subset,
+                          ": open the whole database to change it");
+  }
+}
+}  // namespace
+
+// Takes the folder's lock for this session's changes (once), and checks that
+// the folder still holds the generation this session read.
+void PlaceDatabase::BeginChange() {
+  Impl& m = *impl_;
+  if (m.folder_lock) return;
+  // A reader that opened the database may hold the lock for a moment while
+  // it sweeps debris: wait up to 1 s before deciding another writer has it.
+  std::unique_ptr<DirectoryLock> lock = DirectoryLock::TryLock(m.dir);
+  for (int attempt = 0; !lock && attempt < 20; ++attempt) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    lock = DirectoryLock::TryLock(m.dir);
+  }
+  if (!lock) {
+    PLACEDB_THROW_RUNTIME("the database ", m.dir,
+                          " is being changed by another process or session; one writer at a "
+                          "time (try again when it has saved)");
+  }
+  const std::string manifest_path = (fs::path(m.dir) / Database::kManifestFile).string();
+  std::string text;
+  bool same = false;
+  try {
+    text = ReadFileToString(manifest_path);
+    const nlohmann::json manifest = nlohmann::json::parse(text);
+    same = manifest.at("files").at("keyframes").get<std::string>() == m.db.keyframes_file();
+  } catch (const std::exception&) {
+    same = false;
+  }
+  if (!same) {
+    PLACEDB_THROW_RUNTIME("the database ", m.dir,
+                          " was rewritten on disk since this session opened it; open it again "
+                          "to change it");
+  }
+  m.folder_lock = std::move(lock);
+}
+
+void PlaceDatabase::Add(const Frame& frame, const cv::Mat& image) {
+  RequireWholeDatabase(impl_->whole, impl_->subset_description, "add keyframes");
+  if (image.empty()) PLACEDB_THROW_INVALID("the image of keyframe ", frame.id, " is empty");
+  if (image.depth() != CV_8U ||
+      (image.channels() != 1 && image.channels() != 3 && image.channels() != 4)) {
+    PLACEDB_THROW_INVALID("the image of keyframe ", frame.id, " must be 8-bit gray, BGR or BGRA");
+  }
+  if (frame.id < 1) PLACEDB_THROW_INVALID("keyframe id ", frame.id, " must be at least 1");
+  // The slow part, with no lock held.
+  cv::Mat bgr = image;
+  if (image.channels() == 1) cv::cvtColor(image, bgr, cv::COLOR_GRAY2BGR);
+  if (image.channels() == 4) cv::cvtColor(image, bgr, cv::COLOR_BGRA2BGR);
+  ProcessedFrame processed = ProcessFrame(frame, bgr, impl_->build, *impl_->extractor);
+  std::vector<uint8_t> png;
+  if (impl_->build.store_images) {
+    cv::imencode(".png", processed.stored_image, png,
+                 {cv::IMWRITE_PNG_COMPRESSION, impl_->build.png_compression});
+  }
+  Impl& m = *impl_;
+  std::lock_guard<std::mutex> writer(m.writer);
+  if (m.db.IndexOfId(frame.id) >= 0) PLACEDB_THROW_INVALID("keyframe id ", frame.id, " is taken");
+  BeginChange();
+  std::string written;
+  if (m.build.store_images) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "images/%06d.png", frame.id);
+    fs::create_directories(fs::path(m.dir) / "images");
+    WriteFileAtomic((fs::path(m.dir) / name).string(),
+                    std::string(reinterpret_cast<const char*>(png.data()), png.size()));
+    written = name;
+    processed.keyframe.image_file = name;
+  }
+  try {
+    AddLocked(std::move(processed.keyframe), processed.features);
+  } catch (...) {
+    std::error_code ignore;
+    if (!written.empty()) fs::remove(fs::path(m.dir) / written, ignore);
+    throw;
+  }
+  if (!written.empty()) m.unsaved_images.push_back(written);
+}
+
+void PlaceDatabase::Add(Keyframe keyframe, const FeatureSet& features) {
+  RequireWholeDatabase(impl_->whole, impl_->subset_description, "add keyframes");
+  std::lock_guard<std::mutex> writer(impl_->writer);
+  BeginChange();
+  AddLocked(std::move(keyframe), features);
+}
+
+void PlaceDatabase::AddLocked(Keyframe keyframe, const FeatureSet& features) {
+  Impl& m = *impl_;
+  if (m.db.IndexOfId(keyframe.id) >= 0)
+    PLACEDB_THROW_INVALID("keyframe id ", keyframe.id, " is taken");
+  const std::string reason = CheckKeyframe(keyframe);
+  if (!reason.empty()) PLACEDB_THROW_INVALID("keyframe ", keyframe.id, ": ", reason);
+  // Everything that takes time happens before the readers are held: the
+  // bag of words, and (when the storage is full) a grown copy.
+  std::optional<BowVector> words;
+  std::vector<uint32_t> nodes;
+  if (m.bow) {
+    // The rows in the database's order (SURF: grouped by sign), so that the
+    // vector and the direct nodes are the ones a rebuilt index computes.
+    const GroupedFeatures grouped = GroupByLaplacian(features);
+    words = m.bow->Transform(grouped.block, &nodes);
+  }
+  const size_t rows = features.keypoints.size();
+  std::optional<Database> grown;
+  if (!m.db.HasRoomFor(1, rows)) {
+    grown = m.db;  // reads only, as queries do
+    grown->Reserve(2 * m.db.size() + 16, 2 * m.db.num_features() + rows + 4096);
+    grown->AddKeyframe(keyframe, features);
+  }
+  {
+    // AddKeyframe checks everything before it changes anything: if it throws
+    // here, the session is as it was (nothing below has run).
+    std::unique_lock<FairSharedMutex> publish(m.state);
+    if (grown) {
+      std::swap(m.db, *grown);
+    } else {
+      m.db.AddKeyframe(keyframe, features);
+    }
+    if (words) m.bow->Append(std::move(*words), std::move(nodes));
+    m.clusters.Add(m.db.keyframe(m.db.size() - 1));
+    m.removed.push_back(0);
+    ++m.pending;
+  }
+  // The old storage (after a swap) is freed here, outside the lock.
+}
+
+bool PlaceDatabase::Remove(int32_t id) {
+  Impl& m = *impl_;
+  RequireWholeDatabase(m.whole, m.subset_description, "remove keyframes");
+  std::lock_guard<std::mutex> writer(m.writer);
+  const int index = m.db.IndexOfId(id);
+  if (index < 0 || m.removed[static_cast<size_t>(index)]) return false;
+  BeginChange();
+  std::unique_lock<FairSharedMutex> publish(m.state);
+  m.removed[static_cast<size_t>(index)] = 1;
+  ++m.num_removed;
+  ++m.pending;
+  return true;
+}
+
+size_t PlaceDatabase::num_pending_changes() const {
+  std::shared_lock<FairSharedMutex> lock(impl_->state);
+  return impl_->pending;
+}
+
+void PlaceDatabase::Save() {
+  Impl& m = *impl_;
+  RequireWholeDatabase(m.whole, m.subset_description, "save");
+  std::lock_guard<std::mutex> writer(m.writer);
+  BeginChange();
+  std::vector<char> keep(m.db.size());
+  std::vector<std::string> dropped_images;
+  for (size_t i = 0; i < keep.size(); ++i) {
+    keep[i] = !m.removed[i];
+    if (!keep[i] && !m.db.keyframe(i).image_file.empty())
+      dropped_images.push_back(m.db.keyframe(i).image_file);
+  }
+  Database compacted = m.db.Compacted(keep);
+  if (compacted.empty()) PLACEDB_THROW_INVALID("cannot save a database with no keyframes left");
+  std::string old_bow;
+  if (m.bow) {
+    const BowIndex index =
+        BowIndex::Build(m.vocabulary, compacted, m.build.bow, m.pool.get(), nullptr);
+    const std::string name = SaveBowIndexFile(index, m.dir);
+    nlohmann::json& entry = compacted.info()["index"];
+    old_bow = entry.value("bow", std::string());
+    entry["bow"] = name;
+    if (old_bow == name) old_bow.clear();
+  }
+  compacted.Save(m.dir);
+  // The new generation is in place: what only the old one used goes.
+  std::error_code ignore;
+  if (!old_bow.empty()) fs::remove(fs::path(m.dir) / old_bow, ignore);
+  for (const std::string& image : dropped_images) fs::remove(fs::path(m.dir) / image, ignore);
+
+  // Read back what was written, as a reopened session would.
+  OpenOptions options = m.open;
+  options.threads = m.pool ? m.pool->size() : 1;
+  PlaceDatabase fresh = Open(m.dir, options);
+  Impl& f = *fresh.impl_;
+  std::unique_lock<FairSharedMutex> publish(m.state);
+  std::swap(m.db, f.db);
+  std::swap(m.vocabulary, f.vocabulary);
+  std::swap(m.bow, f.bow);
+  std::swap(m.clusters, f.clusters);
+  std::swap(m.removed, f.removed);
+  m.num_removed = 0;
+  m.pending = 0;
+  m.unsaved_images.clear();
+  publish.unlock();
+  // What killed writers left (none can be writing: we hold the lock).
+  SweepDebris(m.dir, m.db);
+  m.folder_lock.reset();
+}
+
+}  // namespace placedb

@@ -1,0 +1,270 @@
+// The retrieve stage's methods through a session: bag-of-words search,
+// cluster search with its fallback, and the deadline.
+#include "placedb/retrieval/retriever.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <opencv2/imgcodecs.hpp>
+#include <set>
+
+#include "placedb/dataset/image_folder.h"
+#include "placedb/dataset/match_truth.h"
+#include "placedb/retrieval/clusters.h"
+#include "placedb/session/place_database.h"
+#include "placedb/util/testing.h"
+
+namespace placedb {
+namespace {
+using testing_util::RtabmapImage;
+using testing_util::ThrowsWith;
+
+const std::string kImages = PLACEDB_DATA_DIR "/rtabmap_loop/images";
+const std::string kTruth = PLACEDB_DATA_DIR "/rtabmap_loop/ground_truth.csv";
+
+TEST(QueryOptionsTest, DeadlineAndPriorAreChecked) {
+  QueryOptions q;
+  q.deadline_ms = -1.0;
+  EXPECT_FALSE(q.Check().empty());
+  q = QueryOptions();
+  q.prior.keyframe_id = -3;
+  EXPECT_FALSE(q.Check().empty());
+}
+
+// rtabmap 1..40 with a bag-of-words index (a small vocabulary: 40 images).
+class SearchTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    tmp_ = new testing_util::TempDir();
+    BuildOptions options;
+    options.threads = 2;
+    options.progress = false;
+    options.store_images = false;
+    options.index = IndexKind::kBow;
+    options.vocabulary.depth = 3;
+    BuildDatabase(ListImageFolder(kImages, 1, 40), options, Dir(), "rtabmap 1..40");
+    options.index = IndexKind::kNone;
+    BuildDatabase(ListImageFolder(kImages, 1, 40), options, PlainDir(), "rtabmap 1..40");
+    queries_ = new std::vector<FeatureSet>;
+    const PlaceDatabase db = PlaceDatabase::Open(Dir());
+    for (int id = 41; id <= 84; ++id) queries_->push_back(db.Extract(cv::imread(RtabmapImage(id))));
+  }
+  static void TearDownTestSuite() {
+    delete tmp_;
+    delete queries_;
+  }
+  static std::string Dir() { return tmp_->Path("bow"); }
+  static std::string PlainDir() { return tmp_->Path("plain"); }
+  static const FeatureSet& Features(int id) { return (*queries_)[id - 41]; }
+
+  // Recall@1 over 41..84 (every query has a true match in 1..40).
+  static double RecallAt1(const PlaceDatabase& db, QueryOptions options, bool sequence) {
+    const MatchTruth truth = ReadMatchTruth(kTruth);
+    int correct = 0;
+    for (int id = 41; id <= 84; ++id) {
+      const QueryResult r = db.Query(Features(id), options);
+      const auto it = truth.find(id);
+      if (!r.ranked.empty() && it != truth.end() &&
+          std::count(it->second.begin(), it->second.end(), r.ranked[0].keyframe_id) > 0) {
+        ++correct;
+      }
+      if (sequence) options.prior.keyframe_id = r.best() ? r.best()->keyframe_id : 0;
+    }
+    return correct / 44.0;
+  }
+
+  static testing_util::TempDir* tmp_;
+  static std::vector<FeatureSet>* queries_;
+};
+testing_util::TempDir* SearchTest::tmp_ = nullptr;
+std::vector<FeatureSet>* SearchTest::queries_ = nullptr;
+
+TEST_F(SearchTest, BowFindsWhatExhaustiveSearchFinds) {
+  const PlaceDatabase db = PlaceDatabase::Open(Dir());
+  ASSERT_NE(db.Read().bow_index(), nullptr);
+  QueryOptions exhaustive, bow;
+  bow.retrieval.method = RetrievalMethod::kBow;
+  bow.retrieval.bow_candidates = 10;
+  const double r_exhaustive = RecallAt1(db, exhaustive, false);
+  const double r_bow = RecallAt1(db, bow, false);
+  EXPECT_GE(r_exhaustive, 0.95);
+  EXPECT_GE(r_bow, r_exhaustive - 0.02) << "exhaustive " << r_exhaustive;
+  const QueryResult r = db.Query(Features(42), bow);
+  EXPECT_EQ(r.search, "bow");
+  // 10 bag-of-words candidates, the best 5 by guided matches matched in full.
+  ASSERT_EQ(bow.retrieval.guided_candidates, 5);
+  EXPECT_EQ(r.num_examined, 5u);
+  EXPECT_DOUBLE_EQ(r.coverage, 5.0 / 40.0);
+  // Enough candidates, all matched in full: bow examines everything and
+  // answers as exhaustive.
+  bow.retrieval.bow_candidates = 40;
+  bow.retrieval.guided_candidates = 0;
+  const QueryResult all = db.Query(Features(42), bow);
+  EXPECT_EQ(all.ranked, db.Query(Features(42), exhaustive).ranked);
+}
+
+// Scoring a few keyframes one by one gives the inverted file's scores.
+TEST_F(SearchTest, ScoringEachKeyframeEqualsTheInvertedFile) {
+  const PlaceDatabase db = PlaceDatabase::Open(Dir());
+  const PlaceDatabase::View view = db.Read();
+  const GrowingBowIndex& bow = *view.bow_index();
+  const std::vector<uint32_t> among = {0, 3, 4, 5, 17, 30, 39};
+  for (int id = 41; id <= 84; ++id) {
+    std::vector<int8_t> laplacian;
+    const BowVector q = bow.Transform(MakeDescriptorBlock(Features(id), &laplacian));
+    const auto a = bow.ScoreEach(q, 4, among);
+    const auto b = bow.base().Query(q, 4, &among);
+    ASSERT_EQ(a.size(), b.size()) << id;
+    for (size_t i = 0; i < a.size(); ++i) {
+      EXPECT_EQ(a[i].index, b[i].index) << id;
+      EXPECT_EQ(a[i].score, b[i].score) << id;
+    }
+  }
+}
+
+TEST_F(SearchTest, BowNeedsAnIndex) {
+  const PlaceDatabase db = PlaceDatabase::Open(PlainDir());
+  EXPECT_EQ(db.Read().bow_index(), nullptr);
+  QueryOptions bow;
+  bow.retrieval.method = RetrievalMethod::kBow;
+  EXPECT_TRUE(
+      ThrowsWith<std::invalid_argument>([&] { db.Query(Features(42), bow); }, "--index bow"));
+}
+
+// A subset opened from a bow database rebuilds its index in memory.
+TEST_F(SearchTest, SubsetsGetTheirOwnIndex) {
+  OpenOptions open;
+  open.subset = KeyframeSubset::Partition(1, 2, PartitionScheme::kContiguous);
+  const PlaceDatabase part = PlaceDatabase::Open(Dir(), open);
+  ASSERT_NE(part.Read().bow_index(), nullptr);
+  EXPECT_EQ(part.Read().bow_index()->size(), part.size());
+  QueryOptions bow;
+  bow.retrieval.method = RetrievalMethod::kBow;
+  bow.retrieval.bow_candidates = 3;
+  const QueryResult r = part.Query(Features(79), bow);
+  EXPECT_EQ(r.num_examined, 3u);
+  for (const RankedKeyframe& k : r.ranked) EXPECT_GT(k.keyframe_id, 20);
+}
+
+// Cluster search (time clusters of 5): with the previous answer as prior it
+// keeps recall; without a prior it is a global search; a weak local answer
+// falls back, and the merged answer is then the whole database's.
+TEST_F(SearchTest, ClusterSearchWithPriorAndFallback) {
+  OpenOptions open;
+  open.clusters.time_keyframes = 5;
+  for (const std::string& dir : {PlainDir(), Dir()}) {
+    SCOPED_TRACE(dir);
+    const PlaceDatabase db = PlaceDatabase::Open(dir, open);
+    ASSERT_EQ(db.Read().clusters().size(), 8u);
+    QueryOptions exhaustive, cluster;
+    cluster.retrieval.method = RetrievalMethod::kCluster;
+    const double r_exhaustive = RecallAt1(db, exhaustive, false);
+    EXPECT_GE(RecallAt1(db, cluster, true), r_exhaustive - 0.02);
+
+    const QueryResult global = db.Query(Features(42), cluster);
+    EXPECT_EQ(global.search, "cluster+global");
+    EXPECT_EQ(global.cluster, -1);
+    // 42 looks like 1..4: a prior there is enough.
+    cluster.prior.keyframe_id = 3;
+    const QueryResult local = db.Query(Features(42), cluster);
+    EXPECT_EQ(local.search, "cluster");
+    EXPECT_EQ(local.cluster, 0);
+    EXPECT_LE(local.num_examined, 10u);  // clusters 0 and 1
+    ASSERT_NE(local.best(), nullptr);
+    EXPECT_LE(local.best()->keyframe_id, 10);
+    // A prior far away (cluster 4, ids 21..25, 0 hops) is weak: fallback.
+    cluster.prior.keyframe_id = 23;
+    cluster.retrieval.cluster_hops = 0;
+    const QueryResult far = db.Query(Features(42), cluster);
+    EXPECT_EQ(far.search, "cluster+fallback");
+    if (dir == PlainDir()) {
+      EXPECT_EQ(far.num_examined, 40u);
+      EXPECT_EQ(far.ranked, db.Query(Features(42), exhaustive).ranked);
+    }
+    ASSERT_NE(far.best(), nullptr);
+    EXPECT_LE(far.best()->keyframe_id, 10);
+    // An unknown prior id is no prior.
+    cluster.prior.keyframe_id = 999;
+    EXPECT_EQ(db.Query(Features(42), cluster).search, "cluster+global");
+  }
+}
+
+// A deadline too short for anything still examines and verifies the best
+// candidate and says how little was covered; a generous one changes nothing.
+TEST_F(SearchTest, DeadlineStopsEarlyAndSaysSo) {
+  for (const int threads : {1, 2}) {
+    OpenOptions open;
+    open.threads = threads;
+    const PlaceDatabase db = PlaceDatabase::Open(Dir(), open);
+    QueryOptions options;
+    options.deadline_ms = 1e-6;
+    const QueryResult r = db.Query(Features(42), options);
+    EXPECT_TRUE(r.deadline_reached);
+    EXPECT_GE(r.num_examined, 1u);
+    EXPECT_LT(r.num_examined, 40u);
+    EXPECT_DOUBLE_EQ(r.coverage, r.num_examined / 40.0);
+    EXPECT_GE(r.num_verified, r.ranked.empty() ? 0u : 1u);
+    for (const RankedKeyframe& k : r.ranked) EXPECT_TRUE(k.verified());
+    options.deadline_ms = 1e6;
+    const QueryResult full = db.Query(Features(42), options);
+    EXPECT_FALSE(full.deadline_reached);
+    EXPECT_EQ(full.ranked, db.Query(Features(42)).ranked);
+    EXPECT_DOUBLE_EQ(full.coverage, 1.0);
+    // Bag-of-words search: the scoring itself stops at the deadline, and the
+    // best candidate found so far is still examined and verified.
+    QueryOptions bow;
+    bow.retrieval.method = RetrievalMethod::kBow;
+    bow.deadline_ms = 1e-6;
+    const QueryResult late = db.Query(Features(42), bow);
+    EXPECT_TRUE(late.deadline_reached);
+    EXPECT_EQ(late.num_examined, 1u);
+    bow.deadline_ms = 1e6;
+    const QueryResult on_time = db.Query(Features(42), bow);
+    EXPECT_FALSE(on_time.deadline_reached);
+    bow.deadline_ms = 0.0;
+    EXPECT_EQ(on_time.ranked, db.Query(Features(42), bow).ranked);
+  }
+}
+
+// The retrieve stage leaves the session's estimate of one candidate's cost
+// free before the deadline, so that the first candidate, always examined,
+// still ends in time: a query reports its costliest candidate; with an
+// estimate as long as the whole budget the bag-of-words stage stops at once
+// (deadline_reached, though the budget itself is far from spent).
+TEST_F(SearchTest, RetrievalLeavesOneCandidatesCostBeforeTheDeadline) {
+  const PlaceDatabase db = PlaceDatabase::Open(Dir());
+  QueryOptions bow;
+  bow.retrieval.method = RetrievalMethod::kBow;
+  bow.deadline_ms = 1e6;  // far out of reach, however slow the machine
+  const PlaceDatabase::View view = db.Read();
+  QueryContext context;
+  context.bow = view.bow_index();
+  CandidateCost cost;
+  context.candidate_cost = &cost;
+  const QueryResult first = QueryDatabase(view.database(), Features(42), bow, context);
+  EXPECT_FALSE(first.deadline_reached);
+  EXPECT_GT(cost.Get(), 0.0);
+  EXPECT_LT(cost.Get(), first.times.total_ms);
+  cost.Report(1e6);
+  const QueryResult squeezed = QueryDatabase(view.database(), Features(42), bow, context);
+  EXPECT_TRUE(squeezed.deadline_reached);
+  EXPECT_GE(squeezed.num_examined, 1u);
+  // Without a session estimate nothing is left free.
+  context.candidate_cost = nullptr;
+  EXPECT_FALSE(QueryDatabase(view.database(), Features(42), bow, context).deadline_reached);
+  // A decaying maximum: a smaller report lowers it by 2 %, a larger one
+  // replaces it.
+  CandidateCost c;
+  EXPECT_EQ(c.Get(), 0.0);
+  c.Report(2.0);
+  EXPECT_DOUBLE_EQ(c.Get(), 2.0);
+  c.Report(1.0);
+  EXPECT_DOUBLE_EQ(c.Get(), 1.96);
+  c.Report(3.0);
+  EXPECT_DOUBLE_EQ(c.Get(), 3.0);
+}
+
+}  // namespace
+}  // namespace placedb

@@ -1,0 +1,243 @@
+// The keyframe database: what is kept of every training frame (crop
+// rectangle, stored-image geometry, pose, keypoints, descriptors), in flat
+// arrays, and its on-disk form.
+//
+// On disk a database is a directory:
+//   manifest.json                format version, every setting used to build it,
+//                                counts, sizes, creation info, and the name, size
+//                                and checksum of the keyframe file it goes with
+//   keyframes.<checksum>.bin     the keyframe file, format version 2 (see
+//                                keyframe_file.h): a new name for every content
+//   images/                      the stored (cropped, resized) PNGs, when kept
+//
+// The manifest names its keyframe file, so a reader can never pair a manifest
+// with another build's keyframes, and a save in place writes the new file
+// under its new name before the manifest switches to it: a crash at any point
+// leaves the old database or the new one.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+#include <optional>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "placedb/feature/types.h"
+#include "placedb/storage/keyframe_subset.h"
+#include "placedb/match/ratio_matcher.h"
+#include "placedb/util/mapped_file.h"
+#include "placedb/util/pose.h"
+#include "placedb/util/span.h"
+
+namespace placedb {
+
+// Version of the keyframe file and manifest this code writes and reads.
+constexpr uint32_t kDatabaseFormatVersion = 2;
+
+struct Keyframe {
+  int32_t id = 0;             // the source frame's id, >= 1
+  double timestamp = -1.0;    // seconds, -1 when unknown
+  std::optional<Pose> pose;   // ground-truth / map pose, when known
+  cv::Rect crop;              // kept region, in the original image
+  int32_t crop_channel = -1;  // winning chromaticity channel, -1: whole image
+  cv::Size original_size;     // of the source image (0 x 0: unknown)
+  cv::Size stored_size;       // of the stored (cropped, resized) image
+  double scale = 1.0;         // stored = (original - crop.tl()) * scale
+  std::string source;         // path of the source image
+  std::string image_file;     // stored PNG relative to the database dir ("" if none)
+
+  // Maps a point of the stored image back to the original image.
+  cv::Point2f ToOriginal(const cv::Point2f& stored) const {
+    return {static_cast<float>(stored.x / scale + crop.x),
+            static_cast<float>(stored.y / scale + crop.y)};
+  }
+};
+
+// Why a keyframe record is impossible, or "" when it is fine: an id below 1, a
+// crop channel outside [-1, 2], a negative size or crop, an image side above
+// 2^20 pixels, a crop outside a known original size, a scale that is not finite and in (0, 64], a
+// timestamp that is not finite, a pose with non-finite values or a quaternion that is not of unit
+// length, paths longer than 64 KiB, a source path holding a NUL byte, a stored image name that is
+// not IsStoredImageName. The source path may hold any other bytes (it is the user's path, used
+// only to read that image back); it is escaped when printed (EscapeForTerminal) and JSON turns
+// bytes that are not UTF-8 into U+FFFD (DumpJson).
+std::string CheckKeyframe(const Keyframe& keyframe);
+
+// The folder of the stored images inside a database directory.
+constexpr char kStoredImageFolder[] = "images";
+// Whether `name` may be a keyframe's image_file: "" (no stored image) or
+// exactly "images/<name>" where <name> is IsPlainFileName (util/file_io.h):
+// one name of [A-Za-z0-9._-], 1 to 255 bytes, not starting with '.'. So no
+// further separator, no "..", no absolute path, no control character or NUL,
+// nothing that is not printable ASCII: joined to the database directory it
+// names a file inside its images folder, whatever the database file says.
+bool IsStoredImageName(const std::string& name);
+
+// Keypoint and descriptor values a database accepts (AddKeyframe, Load) and
+// a query must have (ValidateQueryFeatures).
+// Why `keypoints` cannot belong to an image of `image_size`, or "": a
+// position, size, angle or response that is not finite, or a position
+// outside the image by more than kKeypointTolerancePx (0 <= x <= width
+// within the tolerance; an unknown size, 0 x 0, bounds positions by the
+// largest image side, 2^20). Extraction puts keypoints in [0, width) x
+// [0, height); the tolerance covers rounding when keypoints are moved into a
+// crop or scaled back from an upscaled frame.
+constexpr float kKeypointTolerancePx = 1.0f;
+std::string CheckKeypoints(const cv::KeyPoint* keypoints, size_t count, cv::Size image_size);
+// Whether all `count` floats are finite (SURF descriptor rows): one
+// vectorisable pass.
+bool AllFinite(const float* values, size_t count);
+
+// What Load reads of the keyframe file.
+enum class LoadContents {
+  kAll,            // keyframes, keypoints and descriptors
+  kKeyframeTable,  // ids, poses, crops, paths and feature counts only (a voter's
+                   // view): keypoints and descriptors are neither read nor checked
+};
+
+struct LoadOptions {
+  KeyframeSubset subset;
+  LoadContents contents = LoadContents::kAll;
+};
+
+class Database {
+ public:
+  Database() = default;
+  // An empty database for descriptors of `type`, `descriptor_bytes` per row
+  // (32 for ORB; 256 or 512 for SURF).
+  Database(FeatureType type, int descriptor_bytes);
+
+  FeatureType feature_type() const { return feature_type_; }
+  int descriptor_bytes() const { return descriptor_bytes_; }
+  // Keyframes (and their features) in this database: all of the file's, or
+  // the subset it was opened with.
+  size_t size() const { return keyframes_.size(); }
+  bool empty() const { return keyframes_.empty(); }
+  size_t num_features() const { return num_features_; }
+  // What Load kept of the file, and how many keyframes the file holds.
+  const KeyframeSubset& subset() const { return subset_; }
+  size_t keyframes_in_file() const { return keyframes_in_file_; }
+  // False for a database loaded as a keyframe table (LoadContents): then
+  // Keypoints and Descriptors must not be called.
+  bool has_features() const { return has_features_; }
+
+  const Keyframe& keyframe(size_t index) const { return keyframes_[index]; }
+  const std::vector<Keyframe>& keyframes() const { return keyframes_; }
+  // Index of the keyframe with this id, or -1.
+  int IndexOfId(int32_t id) const;
+
+  // Keypoints (stored-image coordinates) and descriptors of keyframe `index`,
+  // views valid while the database is alive and unchanged. SURF rows are
+  // grouped by the sign of the Laplacian: the block's first positive_rows
+  // rows have sign +1 (keypoint class_id >= 0), the rest -1.
+  Span<cv::KeyPoint> Keypoints(size_t index) const;
+  DescriptorBlock Descriptors(size_t index) const;
+  size_t FeatureCount(size_t index) const { return feature_count_[index]; }
+
+  // Appends a keyframe with its features. std::invalid_argument when the
+  // keyframe is impossible (CheckKeyframe), its id is taken, or the features'
+  // type, width or count disagree with the database, or a keypoint is not
+  // finite or lies outside the stored image (CheckKeypoints), or a SURF
+  // descriptor value is not finite. SURF features are reordered, positive
+  // Laplacian first.
+  void AddKeyframe(Keyframe keyframe, const FeatureSet& features);
+  // Room for keyframes and feature rows to be appended without moving any
+  // storage (a database used in place from its file has none: the first
+  // AddKeyframe copies it). Reserve makes that room (and copies a mapped
+  // database into owned storage). For online mapping: grow a copy where no
+  // reader looks, then append in place.
+  bool HasRoomFor(size_t keyframes, size_t features) const;
+  void Reserve(size_t keyframes, size_t features);
+  // The keyframes whose `keep` flag is set (keep.size() == size()), in the
+  // same order, with their features and this database's info.
+  Database Compacted(const std::vector<char>& keep) const;
+  // The features of keyframe `index` as a FeatureSet (a copy).
+  FeatureSet Features(size_t index) const;
+
+  // Everything about how the database was built, free-form JSON kept in the
+  // manifest (settings, source, sizes). Set by the builder.
+  nlohmann::json& info() { return info_; }
+  const nlohmann::json& info() const { return info_; }
+
+  // Writes the database into `dir` (which must exist): the keyframe file
+  // streamed under its content-named file name, then the manifest, each via
+  // a temporary file, fsync and rename; then the previous generation's
+  // keyframe file is removed. Saving over an existing database is
+  // crash-safe. One writer at a time per directory.
+  struct SaveResult {
+    std::string keyframes_file;  // name inside `dir`
+    uint64_t keyframes_bytes = 0;
+  };
+  SaveResult Save(const std::string& dir) const;
+
+  // Opens a database directory (or only a subset of it, or only its keyframe
+  // table). The manifest and the keyframe file it names are read relative to
+  // one open directory and checked against each other (name, size, checksum,
+  // counts, feature type and width), so a rebuild between the two reads
+  // cannot mix generations; a rebuild that replaces the file under a reader
+  // makes it read the new generation (a few retries). Every header field,
+  // offset, count, size and checksum of the file is checked before use.
+  // Errors: std::runtime_error with a clear message for a missing, truncated,
+  // corrupted, wrong-magic or wrong-version database (a version 1 database
+  // says how to rebuild it), or one whose manifest and file disagree;
+  // std::invalid_argument for a bad subset (an id that is not in the file).
+  // Saving a subset writes just that subset, and only into a folder that
+  // holds no database (std::invalid_argument otherwise: the subset would
+  // replace the whole database).
+  static Database Load(const std::string& dir, const LoadOptions& options);
+  static Database Load(const std::string& dir, const KeyframeSubset& subset = KeyframeSubset());
+
+  // The loaded keyframe file's name and size (empty / 0 for a database
+  // never loaded).
+  const std::string& keyframes_file() const { return keyframes_file_; }
+  uint64_t keyframes_bytes() const { return keyframes_bytes_; }
+
+  static constexpr const char* kManifestFile = "manifest.json";
+  // Name of the keyframe file whose header checksum is `checksum`.
+  static std::string KeyframesFileName(uint64_t checksum);
+  // Whether `name` is a keyframe file name of any generation (or version 1's
+  // "keyframes.bin").
+  static bool IsKeyframesFileName(const std::string& name);
+
+ private:
+  void DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const std::string& shown,
+                          const LoadOptions& options);
+  void CopyOnWrite();
+  const cv::KeyPoint* KeypointData() const {
+    return mapping_ ? mapped_keypoints_ : keypoints_.data();
+  }
+  const uint8_t* DescriptorData() const {
+    return mapping_ ? mapped_descriptors_ : descriptors_.data();
+  }
+
+  FeatureType feature_type_ = FeatureType::kOrb;
+  int descriptor_bytes_ = 32;
+  std::vector<Keyframe> keyframes_;
+  std::unordered_map<int32_t, int> index_of_id_;  // keyframe id -> index
+  // Keyframe i owns feature rows [row_offset_[i], row_offset_[i] +
+  // feature_count_[i]) of the keypoint and descriptor arrays (the file's,
+  // when mapped); SURF: the first positive_count_[i] have Laplacian +1.
+  std::vector<uint64_t> row_offset_;
+  std::vector<uint32_t> feature_count_;
+  std::vector<uint32_t> positive_count_;
+  size_t num_features_ = 0;
+  // Owned storage (built or grown databases).
+  std::vector<cv::KeyPoint> keypoints_;
+  std::vector<uint8_t> descriptors_;
+  // A loaded database uses its keypoints and descriptors in place in the
+  // memory-mapped file; the first AddKeyframe copies them (copy on write).
+  std::shared_ptr<const MappedFile> mapping_;
+  const cv::KeyPoint* mapped_keypoints_ = nullptr;
+  const uint8_t* mapped_descriptors_ = nullptr;
+  bool has_features_ = true;
+  nlohmann::json info_ = nlohmann::json::object();
+  KeyframeSubset subset_;
+  size_t keyframes_in_file_ = 0;
+  std::string keyframes_file_;
+  uint64_t keyframes_bytes_ = 0;
+};
+
+}  // namespace placedb

@@ -1,0 +1,1250 @@
+#include "placedb/storage/database.h"
+
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <limits>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <random>
+#include <string>
+#include <thread>
+
+#include "placedb/feature/extractor.h"
+#include "placedb/storage/keyframe_file.h"
+#include "placedb/query/query.h"
+#include "placedb/match/ratio_matcher.h"
+#include "placedb/util/checksum.h"
+#include "placedb/util/file_io.h"
+#include "placedb/util/json_reader.h"
+#include "placedb/util/testing.h"
+
+namespace placedb {
+namespace {
+using testing_util::TempDir;
+using testing_util::ThrowsWith;
+namespace fs = std::filesystem;
+using testing_util::RtabmapImage;
+
+void WriteBytes(const std::string& path, const std::string& bytes) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  ASSERT_TRUE(out.good()) << path;
+}
+
+// A database of `n` real images (ids 1..n): each keyframe a crop of the
+// image resized to half size, features extracted on the stored image. Odd
+// ids get a pose when `with_poses`.
+Database MakeDatabase(const ExtractorOptions& options, int n, bool with_poses) {
+  const auto extractor = FeatureExtractor::Create(options);
+  const int bytes = options.type == FeatureType::kOrb ? 32 : (options.surf.extended ? 128 : 64) * 4;
+  Database db(options.type, bytes);
+  for (int i = 1; i <= n; ++i) {
+    const cv::Mat image = cv::imread(RtabmapImage(i));
+    EXPECT_FALSE(image.empty());
+    Keyframe k;
+    k.id = i * 10;  // ids need not be positions
+    k.timestamp = with_poses ? 100.0 + 0.25 * i : -1.0;
+    k.crop = cv::Rect(8 * i, 4 * i, 320, 240);
+    k.crop_channel = i % 3;
+    k.original_size = image.size();
+    cv::Mat stored;
+    cv::resize(image(k.crop), stored, cv::Size(160, 120), 0, 0, cv::INTER_AREA);
+    k.stored_size = stored.size();
+    k.scale = 0.5;
+    k.source = RtabmapImage(i);
+    k.image_file = i == 2 ? "" : "images/" + std::to_string(i) + ".png";  // one without image
+    if (with_poses && i % 2 == 1) {
+      Pose pose;
+      pose.translation = Eigen::Vector3d(0.1 * i, -2.5, 3.0 + i);
+      pose.rotation =
+          Eigen::Quaterniond(Eigen::AngleAxisd(0.1 * i, Eigen::Vector3d(1, 2, 3).normalized()));
+      k.pose = pose;
+    }
+    db.AddKeyframe(k, extractor->Extract(stored));
+  }
+  db.info()["settings"] = {{"crop", "chroma"}, {"resize", 4}};
+  db.info()["source"] = "database_test";
+  db.info()["counts"]["frames"] = n;
+  return db;
+}
+
+void ExpectKeyframesEqual(const Keyframe& a, const Keyframe& b) {
+  EXPECT_EQ(a.id, b.id);
+  EXPECT_EQ(a.timestamp, b.timestamp);
+  EXPECT_EQ(a.crop, b.crop);
+  EXPECT_EQ(a.crop_channel, b.crop_channel);
+  EXPECT_EQ(a.original_size, b.original_size);
+  EXPECT_EQ(a.stored_size, b.stored_size);
+  EXPECT_EQ(a.scale, b.scale);
+  EXPECT_EQ(a.source, b.source);
+  EXPECT_EQ(a.image_file, b.image_file);
+  ASSERT_EQ(a.pose.has_value(), b.pose.has_value()) << "keyframe " << a.id;
+  if (a.pose) {
+    EXPECT_EQ(a.pose->translation, b.pose->translation);
+    EXPECT_EQ(a.pose->rotation.coeffs(), b.pose->rotation.coeffs());
+  }
+}
+
+void ExpectDatabasesEqual(const Database& a, const Database& b) {
+  EXPECT_EQ(a.feature_type(), b.feature_type());
+  EXPECT_EQ(a.descriptor_bytes(), b.descriptor_bytes());
+  ASSERT_EQ(a.size(), b.size());
+  EXPECT_EQ(a.num_features(), b.num_features());
+  for (size_t i = 0; i < a.size(); ++i) {
+    ExpectKeyframesEqual(a.keyframe(i), b.keyframe(i));
+    ASSERT_EQ(a.FeatureCount(i), b.FeatureCount(i));
+    testing_util::ExpectSameKeypoints(a.Keypoints(i), b.Keypoints(i));
+    const DescriptorBlock da = a.Descriptors(i), dbk = b.Descriptors(i);
+    EXPECT_EQ(da.type, dbk.type);
+    ASSERT_EQ(da.rows, dbk.rows);
+    ASSERT_EQ(da.row_bytes, dbk.row_bytes);
+    if (da.rows > 0) {
+      EXPECT_EQ(0, std::memcmp(da.data, dbk.data, static_cast<size_t>(da.rows) * da.row_bytes));
+    }
+    EXPECT_EQ(da.positive_rows, dbk.positive_rows);
+  }
+}
+
+// Every key the builder put in info() comes back with the same value (Save
+// adds its own keys: format, counts, files...).
+void ExpectInfoPreserved(const nlohmann::json& original, const nlohmann::json& loaded) {
+  for (const auto& [key, value] : original.items()) {
+    ASSERT_TRUE(loaded.contains(key)) << key;
+    if (key == "counts") {
+      for (const auto& [k, v] : value.items()) EXPECT_EQ(loaded["counts"][k], v) << k;
+    } else {
+      EXPECT_EQ(loaded[key], value) << key;
+    }
+  }
+}
+
+void RoundTrip(const ExtractorOptions& options, bool with_poses) {
+  TempDir tmp;
+  const Database db = MakeDatabase(options, 3, with_poses);
+  ASSERT_EQ(db.size(), 3u);
+  EXPECT_GT(db.num_features(), 30u);  // real features, not an empty database
+  for (size_t i = 0; i < db.size(); ++i) EXPECT_GT(db.FeatureCount(i), 10u) << i;
+  db.Save(tmp.Path());
+  EXPECT_TRUE(fs::exists(tmp.Path("manifest.json")));
+  const Database loaded = Database::Load(tmp.Path());
+  ExpectDatabasesEqual(db, loaded);
+  ExpectInfoPreserved(db.info(), loaded.info());
+  EXPECT_EQ(loaded.info()["format"], "placedb-database");
+  EXPECT_EQ(loaded.info()["format_version"], kDatabaseFormatVersion);
+  EXPECT_EQ(loaded.info()["feature_type"], FeatureTypeName(options.type));
+  EXPECT_EQ(loaded.info()["counts"]["keyframes"], 3u);
+  EXPECT_EQ(loaded.info()["counts"]["features"], db.num_features());
+  const std::string bin_name = loaded.keyframes_file();
+  EXPECT_TRUE(Database::IsKeyframesFileName(bin_name)) << bin_name;
+  EXPECT_EQ(loaded.info()["files"]["keyframes"], bin_name);
+  EXPECT_EQ(loaded.info()["files"]["keyframes_bytes"], FileSize(tmp.Path(bin_name)));
+  EXPECT_EQ(loaded.keyframes_bytes(), FileSize(tmp.Path(bin_name)));
+  EXPECT_EQ(loaded.IndexOfId(20), 1);
+  EXPECT_EQ(loaded.IndexOfId(2), -1);
+  EXPECT_EQ(loaded.keyframe(0).pose.has_value(), with_poses);
+  EXPECT_FALSE(loaded.keyframe(1).pose.has_value());
+
+  // Saving the loaded database again gives the same bytes and manifest.
+  const std::string bin1 = ReadFileToString(tmp.Path(bin_name));
+  const std::string dir2 = tmp.Path("again");
+  fs::create_directories(dir2);
+  EXPECT_EQ(loaded.Save(dir2).keyframes_file, bin_name);  // named by its content
+  EXPECT_EQ(ReadFileToString(dir2 + "/" + bin_name), bin1);
+  const Database loaded2 = Database::Load(dir2);
+  ExpectDatabasesEqual(db, loaded2);
+  EXPECT_EQ(loaded2.info(), loaded.info());
+}
+
+TEST(DatabaseTest, RoundTripOrbWithPoses) { RoundTrip(ExtractorOptions(), /*with_poses=*/true); }
+
+TEST(DatabaseTest, RoundTripOrbWithoutPoses) {
+  RoundTrip(ExtractorOptions(), /*with_poses=*/false);
+}
+
+TEST(DatabaseTest, RoundTripSurf) {
+  ExtractorOptions options;
+  options.type = FeatureType::kSurf;
+  options.surf.max_features = 200;
+  RoundTrip(options, /*with_poses=*/true);
+  // Laplacian signs come back and both signs are present.
+  TempDir tmp;
+  const Database db = MakeDatabase(options, 1, false);
+  EXPECT_EQ(db.descriptor_bytes(), 256);
+  db.Save(tmp.Path());
+  const Database loaded = Database::Load(tmp.Path());
+  EXPECT_EQ(loaded.feature_type(), FeatureType::kSurf);
+  // Rows grouped by sign: the first positive_rows have class_id >= 0.
+  const DescriptorBlock block = loaded.Descriptors(0);
+  const Span<cv::KeyPoint> kp = loaded.Keypoints(0);
+  EXPECT_GT(block.positive_rows, 0);
+  EXPECT_LT(block.positive_rows, block.rows);
+  for (int r = 0; r < block.rows; ++r) EXPECT_EQ(kp[r].class_id >= 0, r < block.positive_rows) << r;
+}
+
+TEST(DatabaseTest, LoadedDatabaseGrowsAndOutlivesItsFiles) {
+  // A loaded database uses its descriptors in place in the mapped file; the
+  // first added keyframe copies them, and a rebuild replacing the files on
+  // disk does not disturb a database already open.
+  TempDir tmp;
+  const Database three = MakeDatabase(ExtractorOptions(), 3, true);
+  three.Save(tmp.Path());
+  Database loaded = Database::Load(tmp.Path());
+  MakeDatabase(ExtractorOptions(), 1, false).Save(tmp.Path());  // files replaced
+  ExpectDatabasesEqual(three, loaded);
+
+  const Database four = MakeDatabase(ExtractorOptions(), 4, true);
+  FeatureSet extra;
+  extra.type = FeatureType::kOrb;
+  extra.keypoints = four.Keypoints(3).ToVector();
+  const DescriptorBlock block = four.Descriptors(3);
+  extra.descriptors = cv::Mat(block.rows, 32, CV_8U, const_cast<uint8_t*>(block.data)).clone();
+  loaded.AddKeyframe(four.keyframe(3), extra);
+  loaded.info() = four.info();
+  ExpectDatabasesEqual(four, loaded);
+  TempDir again;
+  loaded.Save(again.Path());
+  ExpectDatabasesEqual(four, Database::Load(again.Path()));
+}
+
+TEST(DatabaseTest, EmptyDatabaseRoundTrip) {
+  TempDir tmp;
+  Database db(FeatureType::kOrb, 32);
+  db.Save(tmp.Path());
+  const Database loaded = Database::Load(tmp.Path());
+  EXPECT_TRUE(loaded.empty());
+  EXPECT_EQ(loaded.num_features(), 0u);
+  EXPECT_EQ(loaded.feature_type(), FeatureType::kOrb);
+}
+
+TEST(DatabaseTest, KeyframeToOriginal) {
+  Keyframe k;
+  k.crop = cv::Rect(100, 50, 200, 160);
+  k.scale = 0.5;
+  const cv::Point2f p = k.ToOriginal({10.f, 20.f});
+  EXPECT_FLOAT_EQ(p.x, 120.f);
+  EXPECT_FLOAT_EQ(p.y, 90.f);
+  const cv::Point2f origin = k.ToOriginal({0.f, 0.f});
+  EXPECT_FLOAT_EQ(origin.x, 100.f);
+  EXPECT_FLOAT_EQ(origin.y, 50.f);
+  k.scale = 0.25;
+  const cv::Point2f far = k.ToOriginal({50.f, 40.f});  // stored corner -> crop corner
+  EXPECT_FLOAT_EQ(far.x, 300.f);
+  EXPECT_FLOAT_EQ(far.y, 210.f);
+  Keyframe whole;  // no crop, scale 1: identity
+  const cv::Point2f same = whole.ToOriginal({33.5f, 7.25f});
+  EXPECT_FLOAT_EQ(same.x, 33.5f);
+  EXPECT_FLOAT_EQ(same.y, 7.25f);
+}
+
+// A subset opened from the file holds exactly those keyframes, with the same
+// records, keypoints, descriptors and Laplacian signs as the whole file has
+// for them; the others are not there. Partitions of every scheme cover the
+// file once.
+void ExpectSubsetOf(const Database& whole, const Database& part) {
+  for (size_t i = 0; i < part.size(); ++i) {
+    const int w = whole.IndexOfId(part.keyframe(i).id);
+    ASSERT_GE(w, 0);
+    ExpectKeyframesEqual(whole.keyframe(w), part.keyframe(i));
+    testing_util::ExpectSameKeypoints(whole.Keypoints(w), part.Keypoints(i));
+    const DescriptorBlock a = whole.Descriptors(w), b = part.Descriptors(i);
+    ASSERT_EQ(a.rows, b.rows);
+    if (a.rows > 0) {
+      EXPECT_EQ(0, std::memcmp(a.data, b.data, static_cast<size_t>(a.rows) * a.row_bytes));
+    }
+    EXPECT_EQ(a.positive_rows, b.positive_rows);
+  }
+}
+
+TEST(DatabaseTest, SubsetsOpenOnlyTheirKeyframes) {
+  ExtractorOptions surf;
+  surf.type = FeatureType::kSurf;
+  surf.surf.max_features = 60;
+  for (const ExtractorOptions& options : {ExtractorOptions(), surf}) {
+    TempDir tmp;
+    MakeDatabase(options, 7, true).Save(tmp.Path());
+    const Database whole = Database::Load(tmp.Path());
+    ASSERT_EQ(whole.size(), 7u);
+    for (const PartitionScheme scheme :
+         {PartitionScheme::kContiguous, PartitionScheme::kInterleaved}) {
+      for (int parts : {1, 2, 3, 7, 9}) {
+        size_t keyframes = 0, features = 0;
+        for (int p = 0; p < parts; ++p) {
+          const Database part =
+              Database::Load(tmp.Path(), KeyframeSubset::Partition(p, parts, scheme));
+          EXPECT_EQ(part.keyframes_in_file(), 7u);
+          ExpectSubsetOf(whole, part);
+          for (size_t i = 0; i < part.size(); ++i) {
+            EXPECT_TRUE(InPartition(whole.IndexOfId(part.keyframe(i).id), 7, p, parts, scheme));
+          }
+          keyframes += part.size();
+          features += part.num_features();
+        }
+        EXPECT_EQ(keyframes, 7u) << parts << " parts";
+        EXPECT_EQ(features, whole.num_features());
+      }
+    }
+    // Contiguous partition 1 of 3 of 7 keyframes: indices [7/3, 14/3) = 2, 3
+    // (ids 30, 40).
+    const Database middle = Database::Load(tmp.Path(), KeyframeSubset::Partition(1, 3));
+    ASSERT_EQ(middle.size(), 2u);
+    EXPECT_EQ(middle.keyframe(0).id, 30);
+    EXPECT_EQ(middle.keyframe(1).id, 40);
+    // An id list, in any order, duplicates ignored.
+    const Database ids = Database::Load(tmp.Path(), KeyframeSubset::Ids({60, 10, 60}));
+    ASSERT_EQ(ids.size(), 2u);
+    EXPECT_EQ(ids.keyframe(0).id, 10);
+    EXPECT_EQ(ids.keyframe(1).id, 60);
+    EXPECT_EQ(ids.IndexOfId(60), 1);
+    EXPECT_EQ(ids.IndexOfId(20), -1);
+    ExpectSubsetOf(whole, ids);
+    EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+        [&] {
+          Database::Load(tmp.Path(), KeyframeSubset::Ids({10, 15}));
+        },
+        "keyframe id 15 is not in the database"));
+    EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+        [&] { Database::Load(tmp.Path(), KeyframeSubset::Partition(3, 3)); }, "part must be in"));
+    // A subset saved is a database of that subset; it grows like any other.
+    TempDir saved;
+    Database copy = ids;
+    copy.Save(saved.Path());
+    const Database reloaded = Database::Load(saved.Path());
+    ExpectDatabasesEqual(ids, reloaded);
+    FeatureSet extra;
+    extra.type = options.type;
+    extra.keypoints = whole.Keypoints(3).ToVector();
+    const DescriptorBlock block = whole.Descriptors(3);
+    extra.descriptors =
+        options.type == FeatureType::kOrb
+            ? cv::Mat(block.rows, 32, CV_8U, const_cast<uint8_t*>(block.data)).clone()
+            : cv::Mat(block.rows, 64, CV_32F, const_cast<uint8_t*>(block.data)).clone();
+    copy.AddKeyframe(whole.keyframe(3), extra);  // copy on write of a mapped subset
+    ASSERT_EQ(copy.size(), 3u);
+    ExpectSubsetOf(whole, copy);
+  }
+}
+
+// A saved 3-keyframe ORB database each corruption test starts from, and
+// ways to damage it: raw (the checksums catch it) or resealed (checksums
+// recomputed and the manifest updated, so the parser itself must catch it).
+
+// Offset of section `kind` in the bytes of a keyframe file (its section
+// table), or 0 with a test failure when there is none.
+uint64_t SectionOffsetIn(const std::string& bytes, uint32_t kind) {
+  for (uint32_t s = 0; s < 4; ++s) {
+    uint32_t k;
+    uint64_t offset;
+    std::memcpy(&k, &bytes[64 + 32 * s], 4);
+    std::memcpy(&offset, &bytes[64 + 32 * s + 8], 8);
+    if (k == kind) return offset;
+  }
+  ADD_FAILURE() << "no section " << kind;
+  return 0;
+}
+
+class DatabaseFileTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() { db_ = new Database(MakeDatabase(ExtractorOptions(), 3, true)); }
+  static void TearDownTestSuite() {
+    delete db_;
+    db_ = nullptr;
+  }
+  void SetUp() override {
+    name_ = db_->Save(tmp_.Path()).keyframes_file;
+    bin_ = tmp_.Path(name_);
+    bytes_ = ReadFileToString(bin_);
+    manifest_ = nlohmann::json::parse(ReadFileToString(Dir() + "/manifest.json"));
+    ASSERT_GT(bytes_.size(), 1000u);
+  }
+  std::string Dir() const { return tmp_.Path(); }
+  auto LoadFn() const {
+    return [dir = Dir()] { Database::Load(dir); };
+  }
+  void WriteManifest(const nlohmann::json& m) const {
+    WriteBytes(Dir() + "/manifest.json", m.dump(2));
+  }
+  // Writes `bytes` as the keyframe file with fresh checksums, and a manifest
+  // that agrees with its size and checksum.
+  void WriteResealed(std::string bytes, bool fix_size = true) const {
+    const uint64_t checksum = keyframe_file::Reseal(&bytes, fix_size);
+    WriteBytes(bin_, bytes);
+    nlohmann::json m = manifest_;
+    m["files"]["keyframes_bytes"] = bytes.size();
+    m["files"]["keyframes_checksum"] = ChecksumHex(checksum);
+    WriteManifest(m);
+  }
+  // Offset of section `kind` in the saved file.
+  uint64_t SectionOffset(uint32_t kind) const {
+    return SectionOffsetIn(bytes_, kind);
+  }
+  template <typename T>
+  static void Put(std::string* bytes, size_t at, T value) {
+    std::memcpy(&(*bytes)[at], &value, sizeof(T));
+  }
+
+  static Database* db_;
+  TempDir tmp_;
+  std::string name_, bin_, bytes_;
+  nlohmann::json manifest_;
+};
+Database* DatabaseFileTest::db_ = nullptr;
+
+TEST_F(DatabaseFileTest, TruncatedKeyframesFile) {
+  const size_t size = bytes_.size();
+  for (size_t cut : {size_t{0}, size_t{4}, size_t{10}, size_t{63}, size_t{100}, size_t{200},
+                     size / 2, size - 5, size - 1}) {
+    // As the manifest says: the size disagrees.
+    WriteBytes(bin_, bytes_.substr(0, cut));
+    EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "bytes but manifest.json records"))
+        << "cut at " << cut;
+    // With the manifest updated: the file itself says it is short.
+    nlohmann::json m = manifest_;
+    m["files"]["keyframes_bytes"] = cut;
+    WriteManifest(m);
+    EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "truncated")) << "cut at " << cut;
+  }
+  WriteBytes(bin_, bytes_);
+  WriteManifest(manifest_);
+  EXPECT_EQ(Database::Load(Dir()).size(), 3u);
+}
+
+TEST_F(DatabaseFileTest, CorruptedBytesFailTheirChecksum) {
+  for (const auto& [at, what] : std::vector<std::pair<size_t, std::string>>{
+           {20, "header checksum mismatch"},
+           {64 + 8, "header checksum mismatch"},  // the section table
+           {SectionOffset(keyframe_file::kKeyframes) + 5, "keyframe section checksum mismatch"},
+           {SectionOffset(keyframe_file::kStrings) + 3, "string section checksum mismatch"},
+           {SectionOffset(keyframe_file::kKeypoints) + 77, "keypoint section checksum mismatch"},
+           {bytes_.size() - 10, "descriptor section checksum mismatch"}}) {
+    std::string bad = bytes_;
+    bad[at] = static_cast<char>(bad[at] ^ 0x10);
+    WriteBytes(bin_, bad);
+    EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), what)) << "byte " << at;
+  }
+  WriteBytes(bin_, bytes_ + "xyz");
+  nlohmann::json m = manifest_;
+  m["files"]["keyframes_bytes"] = bytes_.size() + 3;
+  WriteManifest(m);
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "unexpected trailing bytes"));
+}
+
+// A keyframe table (a voter's view) reads neither keypoints nor descriptors:
+// damage there does not stop it, and the features cannot be asked for.
+TEST_F(DatabaseFileTest, KeyframeTableSkipsTheFeatures) {
+  std::string bad = bytes_;
+  bad[bytes_.size() - 10] ^= 0x10;
+  WriteBytes(bin_, bad);
+  LoadOptions table;
+  table.contents = LoadContents::kKeyframeTable;
+  const Database db = Database::Load(Dir(), table);
+  EXPECT_FALSE(db.has_features());
+  ASSERT_EQ(db.size(), 3u);
+  EXPECT_EQ(db.keyframe(0).id, 10);
+  EXPECT_TRUE(db.keyframe(0).pose.has_value());
+  EXPECT_EQ(db.FeatureCount(0), db_->FeatureCount(0));
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { db.Descriptors(0); }, "keyframe table"));
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { db.Keypoints(0); }, "keyframe table"));
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "descriptor section checksum mismatch"));
+}
+
+TEST_F(DatabaseFileTest, WrongVersions) {
+  std::string bad = bytes_;
+  Put<uint32_t>(&bad, 8, kDatabaseFormatVersion + 1);
+  WriteResealed(bad);
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(
+      LoadFn(),
+      "format version " + std::to_string(kDatabaseFormatVersion + 1) + " is not supported"));
+  WriteBytes(bin_, bytes_);
+  nlohmann::json m = manifest_;
+  m["format_version"] = kDatabaseFormatVersion + 1;
+  WriteManifest(m);
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(
+      LoadFn(), "database format version " + std::to_string(kDatabaseFormatVersion + 1) +
+                    " is not supported"));
+  // A version 1 database says how to rebuild it.
+  m["format_version"] = 1;
+  m["source"] = "images:/data/loop [1..40]";
+  WriteManifest(m);
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(
+      LoadFn(), {"format version 1 is no longer read", "placedb build", "--overwrite",
+                 "images:/data/loop [1..40]"}));
+}
+
+TEST_F(DatabaseFileTest, WrongMagic) {
+  std::string bad = bytes_;
+  bad[0] = 'X';
+  WriteBytes(bin_, bad);
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "wrong magic"));
+  WriteResealed("this is a text file, not a database\n");
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "wrong magic"));
+}
+
+// Every field the manifest records of the keyframe file is checked against it.
+TEST_F(DatabaseFileTest, ManifestMustAgreeWithTheKeyframeFile) {
+  auto fails = [&](const std::function<void(nlohmann::json&)>& edit, const std::string& part) {
+    nlohmann::json m = manifest_;
+    edit(m);
+    WriteManifest(m);
+    return ThrowsWith<std::runtime_error>(LoadFn(), part);
+  };
+  EXPECT_TRUE(
+      fails([](nlohmann::json& m) { m["feature_type"] = "surf"; }, "disagree on the feature type"));
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m["descriptor_bytes"] = 64; },
+                    "disagree on the descriptor width"));
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m["counts"]["keyframes"] = 4; },
+                    "disagree on the number of keyframes"));
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m["counts"]["features"] = 5; },
+                    "disagree on the number of features"));
+  EXPECT_TRUE(
+      fails([](nlohmann::json& m) { m["files"]["keyframes_checksum"] = "0123456789abcdef"; },
+            "disagree on the file's checksum"));
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m["files"]["keyframes_bytes"] = 12; }, "records 12"));
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m["files"]["keyframes"] = "../../etc/passwd"; },
+                    "not a keyframe file name"));
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m["counts"]["features"] = true; },
+                    "features is not an integer"));
+  EXPECT_TRUE(
+      fails([](nlohmann::json& m) { m["counts"]["keyframes"] = -1; }, "keyframes is out of range"));
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m["format_version"] = "2"; },
+                    "format_version is not an integer"));
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m.erase("files"); }, "files is missing"));
+  WriteManifest(manifest_);
+  EXPECT_EQ(Database::Load(Dir()).size(), 3u);
+}
+
+TEST_F(DatabaseFileTest, MissingFiles) {
+  fs::remove(bin_);
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), {name_, "is missing"}));
+  fs::remove(Dir() + "/manifest.json");
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "manifest.json is missing"));
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { Database::Load(Dir() + "/nothing_here"); },
+                                             "(not a directory)"));
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { Database::Load(Dir() + "/manifest.json"); },
+                                             "(not a directory)"));
+}
+
+TEST_F(DatabaseFileTest, ManifestNotJson) {
+  WriteBytes(Dir() + "/manifest.json", "{ not json");
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "not valid JSON"));
+  WriteBytes(Dir() + "/manifest.json", "{\"format\": \"something-else\"}");
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "not a placedb database manifest"));
+  WriteBytes(Dir() + "/manifest.json", "[1, 2, 3]");
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "not a placedb database manifest"));
+  WriteBytes(Dir() + "/manifest.json", std::string("\x89PNG\r\n\x1a\n\0\0", 10));
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "not valid JSON"));
+  WriteManifest(manifest_);
+  EXPECT_EQ(Database::Load(Dir()).size(), 3u);
+}
+
+// The defects found with hostile input, each with its regression test:
+// values that are impossible although every checksum is right.
+TEST_F(DatabaseFileTest, ImpossibleValuesWithValidChecksums) {
+  const size_t k0 = SectionOffset(keyframe_file::kKeyframes);
+  const size_t kp = SectionOffset(keyframe_file::kKeypoints);
+  struct Case {
+    std::string what;
+    std::function<void(std::string*)> edit;
+  };
+  const std::vector<Case> cases = {
+      {"features outside its range",
+       [&](std::string* b) {
+         Put<uint64_t>(b, k0 + 152 + 120, ~uint64_t{0} - 3);
+       }},  // offset wraps
+      {"features outside its range",
+       [&](std::string* b) { Put<uint32_t>(b, k0 + 128, 0xffffffffu); }},
+      {"strings outside the string section",
+       [&](std::string* b) {
+         Put<uint64_t>(b, k0 + 136, ~uint64_t{0} - 2);
+       }},  // string offset wraps
+      {"strings outside the string section",
+       [&](std::string* b) { Put<uint32_t>(b, k0 + 132, 60000); }},
+      {"id 0 is not >= 1", [&](std::string* b) { Put<int32_t>(b, k0, 0); }},
+      {"id -5 is not >= 1", [&](std::string* b) { Put<int32_t>(b, k0, -5); }},
+      {"appears twice", [&](std::string* b) { Put<int32_t>(b, k0 + 152, 10); }},
+      {"crop rectangle is negative", [&](std::string* b) { Put<int32_t>(b, k0 + 16, -3); }},
+      {"image size is negative", [&](std::string* b) { Put<int32_t>(b, k0 + 24, -640); }},
+      {"leaves the original image", [&](std::string* b) { Put<int32_t>(b, k0 + 8, 600); }},
+      {"crop channel 7", [&](std::string* b) { Put<int32_t>(b, k0 + 4, 7); }},
+      {"scale is not in (0, 64]", [&](std::string* b) { Put<double>(b, k0 + 48, std::nan("")); }},
+      {"scale is not in (0, 64]",
+       [&](std::string* b) { Put<double>(b, k0 + 48, std::numeric_limits<double>::infinity()); }},
+      {"scale is not in (0, 64]", [&](std::string* b) { Put<double>(b, k0 + 48, 0.0); }},
+      {"timestamp is not finite", [&](std::string* b) { Put<double>(b, k0 + 40, std::nan("")); }},
+      {"pose is not finite", [&](std::string* b) { Put<double>(b, k0 + 64, std::nan("")); }},
+      {"not of unit length",
+       [&](std::string* b) {
+         for (int c = 0; c < 4; ++c) Put<double>(b, k0 + 88 + 8 * c, 0.0);  // zero quaternion
+       }},
+      {"bad pose flag", [&](std::string* b) { Put<uint32_t>(b, k0 + 56, 7); }},
+      {"bad Laplacian split",
+       [&](std::string* b) { Put<uint32_t>(b, k0 + 60, 2); }},  // ORB has none
+      {"keypoint that is not finite", [&](std::string* b) { Put<float>(b, kp + 4, std::nan("")); }},
+      {"keypoint that is not finite",
+       [&](std::string* b) { Put<float>(b, kp + 28 + 8, std::numeric_limits<float>::infinity()); }},
+      {"cannot be 0 bytes wide", [&](std::string* b) { Put<uint32_t>(b, 20, 0); }},
+      {"cannot be 1 bytes wide", [&](std::string* b) { Put<uint32_t>(b, 20, 1); }},
+      {"cannot be 16 bytes wide", [&](std::string* b) { Put<uint32_t>(b, 20, 16); }},
+      {"unknown feature type 9", [&](std::string* b) { Put<uint32_t>(b, 16, 9); }},
+      {"keyframe count", [&](std::string* b) { Put<uint64_t>(b, 32, ~uint64_t{0} / 2); }},
+      {"feature count", [&](std::string* b) { Put<uint64_t>(b, 40, uint64_t{1} << 62); }},
+      {"bad section count", [&](std::string* b) { Put<uint32_t>(b, 24, 1000); }},
+      {"lies outside the file",
+       [&](std::string* b) { Put<uint64_t>(b, 64 + 8, ~uint64_t{0} - 63); }},
+      {"lies outside the file", [&](std::string* b) { Put<uint64_t>(b, 64 + 16, ~uint64_t{0}); }},
+      {"is not aligned", [&](std::string* b) { Put<uint64_t>(b, 64 + 32 + 8, 65); }},
+      {"appears twice",
+       [&](std::string* b) { Put<uint32_t>(b, 64 + 32, 1); }},  // two keyframe sections
+      {"sections overlap",
+       [&](std::string* b) {
+         uint64_t first;
+         std::memcpy(&first, &(*b)[64 + 8], 8);
+         Put<uint64_t>(b, 64 + 32 + 8, first);
+       }},
+      {"size does not match", [&](std::string* b) { Put<uint64_t>(b, 64 + 16, 152); }},
+  };
+  for (const Case& c : cases) {
+    std::string bad = bytes_;
+    c.edit(&bad);
+    WriteResealed(bad);
+    EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), c.what)) << c.what;
+  }
+  WriteResealed(bytes_);
+  EXPECT_EQ(Database::Load(Dir()).size(), 3u);
+}
+
+// The mutation test of the reader: 12 000 damaged keyframe files (bit flips,
+// byte runs, truncations, huge counts, offsets and lengths, swapped fields),
+// each resealed so the checksums pass and the parser itself is tested, and
+// 1 000 damaged manifests. Each either loads (the damage hit a descriptor
+// bit or a value that is still possible), and then answers a query, or fails
+// with std::runtime_error / std::invalid_argument; never a crash, a hang or
+// (under the sanitizers) a bad read.
+TEST_F(DatabaseFileTest, MutatedFilesNeverCrash) {
+  std::mt19937_64 rng(20261201);
+  const FeatureSet query =
+      FeatureExtractor::Create(ExtractorOptions())->Extract(cv::imread(RtabmapImage(42)));
+  int loaded = 0, rejected = 0;
+  auto attempt = [&] {
+    try {
+      const Database db = Database::Load(Dir());
+      // A database that loads must be safe to use.
+      std::vector<int8_t> lap;
+      const DescriptorBlock q = MakeDescriptorBlock(query, &lap);
+      for (size_t i = 0; i < db.size(); ++i) {
+        MatchDescriptors(q, db.Descriptors(i), MatchOptions());
+        for (const cv::KeyPoint& kp : db.Keypoints(i)) ASSERT_TRUE(std::isfinite(kp.pt.x));
+      }
+      ++loaded;
+    } catch (const std::runtime_error&) {
+      ++rejected;
+    } catch (const std::invalid_argument&) {
+      ++rejected;
+    }
+  };
+  const uint64_t interesting[] = {0,
+                                  1,
+                                  2,
+                                  3,
+                                  63,
+                                  64,
+                                  65,
+                                  151,
+                                  152,
+                                  0x7fffffff,
+                                  0x80000000,
+                                  0xffffffff,
+                                  uint64_t{1} << 32,
+                                  uint64_t{1} << 62,
+                                  ~uint64_t{0} / 2,
+                                  ~uint64_t{0} - 1,
+                                  ~uint64_t{0}};
+  constexpr int kFiles = 12000;
+  for (int i = 0; i < kFiles; ++i) {
+    std::string bad = bytes_;
+    const int kind = static_cast<int>(rng() % 6);
+    // Aim at the fields: the header and section table, the keyframe records
+    // and strings, the keypoints; now and then anywhere (descriptor bits are
+    // data, any value is possible).
+    const size_t table_end = 64 + 4 * 32;
+    const size_t records_end = SectionOffset(keyframe_file::kKeypoints);
+    const size_t features_at = SectionOffset(keyframe_file::kDescriptors);
+    const int region = static_cast<int>(rng() % 10);
+    const size_t from = region < 4 ? 0 : region < 7 ? table_end : region < 9 ? records_end : 0;
+    const size_t to = region < 4 ? table_end : region < 7 ? records_end : region < 9 ? features_at
+                                                                                    : bad.size();
+    const size_t span = to - from;
+    auto at_in_region = [&](size_t alignment) { return from + (rng() % (span / alignment)) * alignment; };
+    if (kind == 0) {  // bit flips
+      for (int f = 0, n = 1 + static_cast<int>(rng() % 4); f < n; ++f) {
+        bad[at_in_region(1)] ^= static_cast<char>(1 << (rng() % 8));
+      }
+    } else if (kind == 1) {  // a run of random bytes
+      const size_t at = at_in_region(1), n = 1 + rng() % 16;
+      for (size_t j = at; j < std::min(bad.size(), at + n); ++j) bad[j] = static_cast<char>(rng());
+    } else if (kind == 2) {  // an interesting 8-byte value at an 8-aligned offset
+      const size_t at = at_in_region(8);
+      Put<uint64_t>(&bad, at, interesting[rng() % (sizeof(interesting) / 8)]);
+    } else if (kind == 3) {  // an interesting 4-byte value at a 4-aligned offset
+      const size_t at = (rng() % (span / 4)) * 4;
+      Put<uint32_t>(&bad, at,
+                    static_cast<uint32_t>(interesting[rng() % (sizeof(interesting) / 8)]));
+    } else if (kind == 4) {  // truncation, or growth
+      if (rng() % 2) {
+        bad.resize(rng() % bad.size());
+      } else {
+        bad.append(1 + rng() % 200, static_cast<char>(rng()));
+      }
+    } else {  // a header or table field
+      const size_t at = (rng() % ((64 + 4 * 32) / 4)) * 4;
+      Put<uint32_t>(&bad, at, static_cast<uint32_t>(rng()));
+    }
+    WriteResealed(bad, /*fix_size=*/rng() % 8 != 0);
+    attempt();
+  }
+  // Manifests: every field replaced by a value of another type or range.
+  const std::vector<nlohmann::json> values = {nullptr,
+                                              true,
+                                              -1,
+                                              0,
+                                              2147483648LL,
+                                              1.5,
+                                              "x",
+                                              nlohmann::json::array(),
+                                              nlohmann::json::object()};
+  std::vector<std::vector<std::string>> paths = {{"format"},
+                                                 {"format_version"},
+                                                 {"feature_type"},
+                                                 {"descriptor_bytes"},
+                                                 {"counts"},
+                                                 {"counts", "keyframes"},
+                                                 {"counts", "features"},
+                                                 {"files"},
+                                                 {"files", "keyframes"},
+                                                 {"files", "keyframes_bytes"},
+                                                 {"files", "keyframes_checksum"}};
+  WriteBytes(bin_, bytes_);
+  constexpr int kManifests = 1000;
+  for (int i = 0; i < kManifests; ++i) {
+    nlohmann::json m = manifest_;
+    const auto& path = paths[rng() % paths.size()];
+    nlohmann::json* field = &m;
+    for (const std::string& key : path) field = &(*field)[key];
+    *field = values[rng() % values.size()];
+    if (rng() % 10 == 0) {
+      std::string text = m.dump();
+      text.resize(rng() % text.size());
+      WriteBytes(Dir() + "/manifest.json", text);
+    } else {
+      WriteManifest(m);
+    }
+    attempt();
+  }
+  std::printf("mutations: %d loaded, %d rejected of %d\n", loaded, rejected, kFiles + kManifests);
+  EXPECT_EQ(loaded + rejected, kFiles + kManifests);
+  EXPECT_GT(rejected, kFiles / 2);  // most damage to the fields is caught
+  EXPECT_GT(loaded, 0);             // and descriptor bits are just data
+}
+
+// Saving in place over a database, killed (SIGKILL) at random moments: the
+// directory always holds a database that loads, the old one or the new one.
+TEST(DatabaseSaveTest, KilledInPlaceSaveLeavesALoadableDatabase) {
+  if (testing_util::kThreadSanitizer) GTEST_SKIP() << "forks: not under ThreadSanitizer";
+  TempDir tmp;
+  const Database small = MakeDatabase(ExtractorOptions(), 2, false);
+  const Database large = MakeDatabase(ExtractorOptions(), 6, true);
+  small.Save(tmp.Path());
+  std::mt19937 rng(7);
+  int survived = 0;
+  for (int trial = 0; trial < 30; ++trial) {
+    const pid_t child = ::fork();
+    ASSERT_GE(child, 0);
+    if (child == 0) {
+      for (int n = 0;; ++n) (n % 2 ? small : large).Save(tmp.Path());  // until killed
+    }
+    std::this_thread::sleep_for(std::chrono::microseconds(500 + rng() % 20000));
+    ::kill(child, SIGKILL);
+    int status = 0;
+    ::waitpid(child, &status, 0);
+    const Database db = Database::Load(tmp.Path());
+    EXPECT_TRUE(db.size() == 2 || db.size() == 6) << db.size();
+    ExpectDatabasesEqual(db.size() == 2 ? small : large, db);
+    ++survived;
+  }
+  EXPECT_EQ(survived, 30);
+  // No stale generation is left once a save completes.
+  small.Save(tmp.Path());
+  int keyframe_files = 0;
+  for (const auto& e : fs::directory_iterator(tmp.Path())) {
+    keyframe_files += Database::IsKeyframesFileName(e.path().filename().string());
+  }
+  EXPECT_EQ(keyframe_files, 1);
+}
+
+// A reader never pairs one generation's manifest with another's keyframe
+// file, while a writer keeps replacing the database in place: every load
+// sees the keyframes the manifest it read describes. Bounded by counts, not
+// by time: the writer saves kSaves times (b, a, b, ...) and after each save
+// waits until the reader has completed two more loads, so at least one load
+// runs wholly between two saves (it must see the generation just saved)
+// while the others overlap the saves, however slow the machine.
+TEST(DatabaseSaveTest, ReadersSeeOneGenerationWhileAWriterSaves) {
+  TempDir tmp;
+  Database a = MakeDatabase(ExtractorOptions(), 3, false);
+  Database b = MakeDatabase(ExtractorOptions(), 3, true);  // same counts, other content
+  a.info()["generation"] = "a";
+  b.info()["generation"] = "b";
+  a.Save(tmp.Path());
+  constexpr int kSaves = 40;
+  std::atomic<int> loads{0};
+  std::atomic<bool> writer_done{false}, reader_failed{false};
+  std::string writer_error, reader_error;
+  std::thread writer([&] {
+    try {
+      for (int n = 0; n < kSaves && !reader_failed; ++n) {
+        (n % 2 ? a : b).Save(tmp.Path());
+        const int target = loads.load() + 2;
+        while (loads.load() < target && !reader_failed) std::this_thread::yield();
+      }
+    } catch (const std::exception& e) {
+      writer_error = e.what();
+    }
+    writer_done = true;
+  });
+  int mixed = 0, seen_a = 0, seen_b = 0;
+  try {
+    while (!writer_done) {
+      const Database db = Database::Load(tmp.Path());
+      const bool with_poses = db.keyframe(0).pose.has_value();
+      const bool is_b = db.info()["generation"] == "b";
+      mixed += with_poses != is_b;
+      ++(is_b ? seen_b : seen_a);
+      ++loads;
+    }
+  } catch (const std::exception& e) {
+    reader_error = e.what();
+    reader_failed = true;
+  }
+  writer.join();
+  std::printf("%d loads during %d in-place saves (%d a, %d b), %d mixed\n", loads.load(),
+              kSaves, seen_a, seen_b, mixed);
+  EXPECT_EQ(writer_error, "");
+  EXPECT_EQ(reader_error, "");
+  EXPECT_EQ(mixed, 0);
+  EXPECT_GE(loads.load(), 2 * kSaves);
+  // Each save was followed by a load that saw just that generation.
+  EXPECT_GE(seen_a, kSaves / 2);
+  EXPECT_GE(seen_b, kSaves / 2);
+}
+
+TEST(DatabaseTest, AddingSurfFeaturesToOrbDatabaseThrows) {
+  Database db = MakeDatabase(ExtractorOptions(), 1, false);
+  ASSERT_EQ(db.size(), 1u);
+  ExtractorOptions surf;
+  surf.type = FeatureType::kSurf;
+  surf.surf.max_features = 50;
+  const FeatureSet features = FeatureExtractor::Create(surf)->Extract(cv::imread(RtabmapImage(5)));
+  ASSERT_FALSE(features.empty());
+  Keyframe k;
+  k.id = 99;
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { db.AddKeyframe(k, features); },
+                                                "cannot add surf features to a database of orb"));
+  EXPECT_EQ(db.size(), 1u);  // unchanged
+  // A SURF database refuses ORB features the same way.
+  Database surf_db(FeatureType::kSurf, 256);
+  const FeatureSet orb =
+      FeatureExtractor::Create(ExtractorOptions())->Extract(cv::imread(RtabmapImage(5)));
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { surf_db.AddKeyframe(k, orb); },
+                                                "cannot add orb features to a database of surf"));
+  EXPECT_TRUE(surf_db.empty());
+}
+
+TEST(DatabaseTest, DuplicateKeyframeIdThrows) {
+  Database db = MakeDatabase(ExtractorOptions(), 2, false);  // ids 10, 20
+  const size_t features = db.num_features();
+  const FeatureSet set =
+      FeatureExtractor::Create(ExtractorOptions())->Extract(cv::imread(RtabmapImage(7)));
+  Keyframe k;
+  k.id = 20;
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { db.AddKeyframe(k, set); },
+                                                "duplicate keyframe id 20"));
+  EXPECT_EQ(db.size(), 2u);
+  EXPECT_EQ(db.num_features(), features);
+  k.id = 21;
+  db.AddKeyframe(k, set);
+  EXPECT_EQ(db.size(), 3u);
+  EXPECT_EQ(db.num_features(), features + set.size());
+}
+
+
+// ---- names, strings, keypoints and rows from a hostile file ------------------
+// (issue 17's hostile-input probe: each family crafted checksum-valid, so the
+// decoder's own checks must catch it).
+
+// A database saved in `dir` from `bytes` (a keyframe file image) resealed,
+// with a manifest that agrees with it: the checksums pass.
+void WriteResealedDatabase(const std::string& dir, const std::string& name,
+                           const nlohmann::json& manifest, std::string bytes) {
+  const uint64_t checksum = keyframe_file::Reseal(&bytes, true);
+  WriteBytes(dir + "/" + name, bytes);
+  nlohmann::json m = manifest;
+  m["files"]["keyframes_bytes"] = bytes.size();
+  m["files"]["keyframes_checksum"] = ChecksumHex(checksum);
+  WriteBytes(dir + "/manifest.json", m.dump(2));
+}
+
+// Where things lie in a saved keyframe file.
+struct FileLayout {
+  explicit FileLayout(const std::string& bytes) : bytes_(bytes) {}
+  uint64_t Section(uint32_t kind) const {
+    return SectionOffsetIn(bytes_, kind);
+  }
+  size_t Record(size_t i) const { return Section(keyframe_file::kKeyframes) + 152 * i; }
+  template <typename T>
+  T Get(size_t at) const {
+    T v;
+    std::memcpy(&v, &bytes_[at], sizeof(T));
+    return v;
+  }
+  const std::string& bytes_;
+};
+
+template <typename T>
+void PutAt(std::string* bytes, size_t at, T value) {
+  std::memcpy(&(*bytes)[at], &value, sizeof(T));
+}
+
+// Keyframe i's source and stored-image name replaced (they must fit in the
+// bytes its strings take now).
+bool SetStrings(std::string* bytes, size_t i, const std::string& source, const std::string& image) {
+  const FileLayout f(*bytes);
+  const size_t r = f.Record(i);
+  const uint64_t offset = f.Get<uint64_t>(r + 136);
+  const uint32_t room = f.Get<uint32_t>(r + 132) + f.Get<uint32_t>(r + 144);
+  if (source.size() + image.size() > room) return false;
+  const size_t at = f.Section(keyframe_file::kStrings) + offset;
+  std::memcpy(&(*bytes)[at], source.data(), source.size());
+  std::memcpy(&(*bytes)[at + source.size()], image.data(), image.size());
+  PutAt<uint32_t>(bytes, r + 132, static_cast<uint32_t>(source.size()));
+  PutAt<uint32_t>(bytes, r + 144, static_cast<uint32_t>(image.size()));
+  return true;
+}
+
+// Whether `name`, joined to `dir`, names a file directly inside dir/images:
+// the oracle the decoder's rule is held to (lexically, as a path).
+bool InsideImages(const std::string& dir, const std::string& name) {
+  if (name.empty()) return true;
+  const fs::path joined = (fs::path(dir) / name).lexically_normal();
+  return joined.parent_path() == (fs::path(dir) / "images").lexically_normal() &&
+         joined.filename() != "." && joined.filename() != "..";
+}
+
+TEST_F(DatabaseFileTest, StoredImageNamesStayInsideTheDatabase) {
+  const std::string source = db_->keyframe(0).source.substr(0, 8);
+  for (const std::string& name :
+       {std::string("../victim.txt"), std::string("../../victim.txt"), std::string("/tmp/victim"),
+        std::string("/etc/passwd"), std::string("images/../../victim"),
+        std::string("images/../manifest.json"), std::string("images/a/b.png"),
+        std::string("images//x.png"), std::string("images/"), std::string("images/."),
+        std::string("images/.."), std::string("images/.hidden.png"),
+        std::string("images/x\x1b[31m.png"), std::string("images/x\n.png"),
+        std::string("images/x\0.png", 13), std::string("images/caf\xe9.png"),
+        std::string("images\\x.png"), std::string("imagesx.png"), std::string("images/x.png/"),
+        std::string("./images/1.png"), std::string("images/ x.png"), std::string("IMAGES/1.png"),
+        std::string("images/x\x7f.png"), std::string("x.png")}) {
+    std::string bad = bytes_;
+    ASSERT_TRUE(SetStrings(&bad, 0, source, name));
+    WriteResealed(bad);
+    EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), {"keyframe record 0 (id 10)",
+                                                          "stored image name"}))
+        << EscapeForTerminal(name);
+  }
+  // Plain names load; so does a keyframe without a stored image.
+  for (const std::string& name : {"images/000001.png", "images/a-b_c.D9.png", ""}) {
+    std::string good = bytes_;
+    ASSERT_TRUE(SetStrings(&good, 0, source, name));
+    WriteResealed(good);
+    EXPECT_EQ(Database::Load(Dir()).keyframe(0).image_file, name);
+  }
+  // A NUL cannot be in a path.
+  std::string nul = bytes_;
+  ASSERT_TRUE(SetStrings(&nul, 0, std::string("/data/a\0b.png", 13), "images/1.png"));
+  WriteResealed(nul);
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "source path holds a NUL byte"));
+}
+
+// Source paths are the user's bytes: not UTF-8, control characters, they
+// open; JSON of them is valid UTF-8 and terminal text is escaped.
+TEST_F(DatabaseFileTest, SourcePathsOfAnyBytesOpenAndPrintSafely) {
+  const std::string source = std::string("/data/caf\xe9/\x1b[2J\n\x80\xff.png");
+  std::string bytes = bytes_;
+  ASSERT_TRUE(SetStrings(&bytes, 0, source, "images/1.png"));
+  WriteResealed(bytes);
+  const Database db = Database::Load(Dir());
+  ASSERT_EQ(db.keyframe(0).source, source);
+  const std::string text = DumpJson(nlohmann::json{{"source", db.keyframe(0).source}});
+  EXPECT_TRUE(IsValidUtf8(text));
+  const std::string dumped = nlohmann::json::parse(text)["source"].get<std::string>();
+  EXPECT_EQ(dumped.compare(0, 9, "/data/caf"), 0) << dumped;
+  EXPECT_NE(dumped.find("\xef\xbf\xbd"), std::string::npos) << dumped;  // U+FFFD
+  EXPECT_NE(dumped.find("\x1b[2J\n"), std::string::npos) << dumped;  // valid UTF-8 kept
+  EXPECT_EQ(EscapeForTerminal(source), "/data/caf\\xe9/\\x1b[2J\\x0a\\x80\\xff.png");
+}
+
+TEST_F(DatabaseFileTest, KeypointsLieInsideTheStoredImage) {
+  const FileLayout f(bytes_);
+  const size_t kp = f.Section(keyframe_file::kKeypoints);  // keyframe 0's first keypoint
+  ASSERT_EQ(db_->keyframe(0).stored_size, cv::Size(160, 120));
+  const float inf = std::numeric_limits<float>::infinity();
+  for (const auto& [at, value] : std::vector<std::pair<size_t, float>>{
+           {kp, -5.0f}, {kp, -1.01f}, {kp, 161.5f}, {kp + 4, 121.01f}, {kp, 1e30f}, {kp + 4, -1e30f},
+           {kp, 3e38f}, {kp + 28 * 3 + 4, 1e6f}}) {
+    std::string bad = bytes_;
+    PutAt<float>(&bad, at, value);
+    WriteResealed(bad);
+    EXPECT_TRUE(ThrowsWith<std::runtime_error>(
+        LoadFn(), {"keyframe 10 has a keypoint outside its stored image (160x120)"}))
+        << value;
+  }
+  std::string bad = bytes_;
+  PutAt<float>(&bad, kp, -inf);
+  WriteResealed(bad);
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "keypoint that is not finite"));
+  // On the border and within the tolerance of a pixel: loads.
+  for (const auto& [at, value] : std::vector<std::pair<size_t, float>>{
+           {kp, 0.0f}, {kp, -1.0f}, {kp, 160.0f}, {kp, 161.0f}, {kp + 4, 121.0f}}) {
+    std::string good = bytes_;
+    PutAt<float>(&good, at, value);
+    WriteResealed(good);
+    EXPECT_EQ(Database::Load(Dir()).size(), 3u) << value;
+  }
+  // A keyframe of unknown stored size (0 x 0): the largest image bounds it.
+  std::string unknown = bytes_;
+  PutAt<int32_t>(&unknown, f.Record(0) + 32, 0);
+  PutAt<int32_t>(&unknown, f.Record(0) + 36, 0);
+  PutAt<float>(&unknown, kp, 5000.0f);
+  WriteResealed(unknown);
+  EXPECT_EQ(Database::Load(Dir()).size(), 3u);
+  PutAt<float>(&unknown, kp, 2e6f);
+  WriteResealed(unknown);
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "largest possible image"));
+}
+
+ExtractorOptions SmallSurf() {
+  ExtractorOptions options;
+  options.type = FeatureType::kSurf;
+  options.surf.max_features = 60;
+  return options;
+}
+
+TEST(DatabaseRowsTest, NonFiniteSurfRowsAreRefused) {
+  TempDir tmp;
+  const Database surf = MakeDatabase(SmallSurf(), 2, false);
+  const std::string name = surf.Save(tmp.Path()).keyframes_file;
+  const std::string bytes = ReadFileToString(tmp.Path(name));
+  const nlohmann::json manifest = nlohmann::json::parse(ReadFileToString(tmp.Path("manifest.json")));
+  const size_t rows = FileLayout(bytes).Section(keyframe_file::kDescriptors);
+  const size_t second = rows + surf.FeatureCount(0) * 256;  // keyframe 20's first row
+  for (const auto& [at, value] : std::vector<std::pair<size_t, float>>{
+           {rows, std::nanf("")},
+           {rows + 4 * 63, std::numeric_limits<float>::infinity()},
+           {second + 8, -std::numeric_limits<float>::infinity()},
+           {bytes.size() - 4, std::nanf("7")}}) {
+    std::string bad = bytes;
+    PutAt<float>(&bad, at, value);
+    WriteResealedDatabase(tmp.Path(), name, manifest, bad);
+    EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { Database::Load(tmp.Path()); },
+                                               "has a SURF descriptor value that is not finite"));
+  }
+  // A subset that leaves the damaged keyframe out opens; the checksum still
+  // covers every row.
+  std::string bad = bytes;
+  PutAt<float>(&bad, second + 8, std::nanf(""));
+  WriteResealedDatabase(tmp.Path(), name, manifest, bad);
+  EXPECT_EQ(Database::Load(tmp.Path(), KeyframeSubset::Ids({10})).size(), 1u);
+  bad[second + 100] ^= 1;
+  WriteBytes(tmp.Path(name), bad);
+  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { Database::Load(tmp.Path()); },
+                                             "descriptor section checksum mismatch"));
+  // Large but finite values are data.
+  std::string big = bytes;
+  PutAt<float>(&big, rows, 3e38f);
+  WriteResealedDatabase(tmp.Path(), name, manifest, big);
+  EXPECT_EQ(Database::Load(tmp.Path()).size(), 2u);
+}
+
+// The same rules for features from outside: AddKeyframe and a query's.
+TEST(DatabaseRowsTest, AddedAndQueryFeaturesAreChecked) {
+  Database db = MakeDatabase(SmallSurf(), 1, false);
+  const Keyframe model = db.keyframe(0);
+  const FeatureSet features = db.Features(0);
+  ASSERT_GT(features.size(), 3u);
+  Keyframe k = model;
+  k.id = 77;
+  for (const std::string& name : {"../victim.png", "/tmp/x.png", "images/a/b.png"}) {
+    k.image_file = name;
+    EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { db.AddKeyframe(k, features); },
+                                                  "stored image name"))
+        << name;
+  }
+  k.image_file = "images/000077.png";
+  FeatureSet outside = features;
+  outside.keypoints[2].pt.x = -5.0f;
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { db.AddKeyframe(k, outside); },
+                                                "keypoint outside its stored image"));
+  outside.keypoints[2].pt = {1e30f, 3.0f};
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { db.AddKeyframe(k, outside); },
+                                                "keypoint outside its stored image"));
+  FeatureSet nan_row = features;
+  nan_row.descriptors = features.descriptors.clone();
+  nan_row.descriptors.at<float>(1, 5) = std::nanf("");
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { db.AddKeyframe(k, nan_row); },
+                                                "SURF descriptor value that is not finite"));
+  EXPECT_EQ(db.size(), 1u);
+  db.AddKeyframe(k, features);
+  EXPECT_EQ(db.size(), 2u);
+
+  // A query's features: no image size to hold them to but the largest.
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ValidateQueryFeatures(nan_row, db); },
+                                                "SURF descriptor value that is not finite"));
+  FeatureSet far = features;
+  far.keypoints[0].pt.y = 1e30f;
+  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ValidateQueryFeatures(far, db); },
+                                                "largest possible image"));
+  ValidateQueryFeatures(features, db);
+}
+
+// The mutation families of issue 17, each database checksum-valid: stored
+// image names, source strings of any bytes, keypoint positions, SURF rows.
+// What loads must hold to the rules (names inside images/, strings that
+// print and dump safely, keypoints within a pixel of the stored image,
+// finite rows); what breaks them must be refused, with
+// std::runtime_error.
+TEST_F(DatabaseFileTest, MutatedNamesStringsKeypointsAndRows) {
+  std::mt19937_64 rng(20261717);
+  const FileLayout f(bytes_);
+  const std::vector<std::string> pieces = {
+      "images/", "images", "../", "..", ".", "/", "//", "a", "000001.png", "\x1b", "\n", "\r",
+      std::string(1, '\0'), "\xe9", "\xc3\xa9", "\\", " ", "-", "_", "~", "$HOME", "*", "\x7f",
+      "\xc2\x9b", "%2e%2e"};
+  int names_loaded = 0, names_refused = 0;
+  for (int i = 0; i < 400; ++i) {
+    std::string name;
+    if (rng() % 4 == 0) {
+      name = "images/";
+      for (size_t n = rng() % 12; n > 0; --n) name += static_cast<char>(rng() % 256);
+    } else {
+      for (size_t n = 1 + rng() % 5; n > 0; --n) name += pieces[rng() % pieces.size()];
+    }
+    const size_t k = rng() % 3;
+    std::string bad = bytes_;
+    if (!SetStrings(&bad, k, "", name)) continue;
+    WriteResealed(bad);
+    try {
+      const Database db = Database::Load(Dir());
+      ++names_loaded;
+      for (const Keyframe& kf : db.keyframes()) {
+        EXPECT_TRUE(InsideImages(Dir(), kf.image_file)) << EscapeForTerminal(kf.image_file);
+        for (const char c : kf.image_file) EXPECT_TRUE(c > 0x20 && c < 0x7f) << int{c};
+      }
+    } catch (const std::runtime_error& e) {
+      ++names_refused;
+      EXPECT_FALSE(InsideImages(Dir(), name) && IsPlainFileName(name.substr(7)) &&
+                   name.compare(0, 7, "images/") == 0)
+          << e.what();
+    }
+  }
+  EXPECT_GT(names_refused, 300);
+  // Strings of any bytes but NUL: always open, dump and print safely.
+  for (int i = 0; i < 200; ++i) {
+    std::string source;
+    for (size_t n = 1 + rng() % 40; n > 0; --n) source += static_cast<char>(1 + rng() % 255);
+    std::string bytes = bytes_;
+    const size_t k = rng() % 3;
+    ASSERT_TRUE(SetStrings(&bytes, k, source, ""));
+    WriteResealed(bytes);
+    const Database db = Database::Load(Dir());
+    EXPECT_EQ(db.keyframe(k).source, source);
+    nlohmann::json j = nlohmann::json::object();
+    for (const Keyframe& kf : db.keyframes()) j["sources"].push_back(kf.source);
+    const std::string text = DumpJson(j, i % 2 ? 2 : -1);
+    EXPECT_TRUE(IsValidUtf8(text));
+    EXPECT_NO_THROW(nlohmann::json::parse(text));
+    const std::string shown = EscapeForTerminal(source);
+    EXPECT_TRUE(IsValidUtf8(shown));
+    for (const char c : shown) EXPECT_FALSE((c >= 0 && c < 0x20) || c == 0x7f);
+  }
+  // Keypoint positions: refused exactly when outside [-1, side + 1].
+  const size_t kp = f.Section(keyframe_file::kKeypoints);
+  const uint64_t features = db_->num_features();
+  const float specials[] = {-1e30f, 1e30f, -5.0f, -1.0f, -0.999f, 0.0f, 160.0f, 161.0f, 161.001f,
+                            120.0f, 121.0f, 3e38f, std::numeric_limits<float>::infinity(),
+                            std::nanf("")};
+  int kp_loaded = 0, kp_refused = 0;
+  for (int i = 0; i < 400; ++i) {
+    const uint64_t row = rng() % features;
+    const bool y = rng() % 2;
+    const float value = rng() % 3 == 0 ? specials[rng() % (sizeof(specials) / sizeof(float))]
+                                       : -20.0f + static_cast<float>(rng() % 20000) / 100.0f;
+    std::string bad = bytes_;
+    PutAt<float>(&bad, kp + row * 28 + (y ? 4 : 0), value);
+    WriteResealed(bad);
+    const float side = y ? 120.0f : 160.0f;
+    const bool possible = value >= -1.0f && value <= side + 1.0f;
+    try {
+      Database::Load(Dir());
+      ++kp_loaded;
+      EXPECT_TRUE(possible) << value;
+    } catch (const std::runtime_error& e) {
+      ++kp_refused;
+      EXPECT_FALSE(possible) << value << ": " << e.what();
+    }
+  }
+  EXPECT_GT(kp_loaded, 50);
+  EXPECT_GT(kp_refused, 50);
+}
+
+TEST(DatabaseRowsTest, MutatedSurfRows) {
+  TempDir tmp;
+  const Database surf = MakeDatabase(SmallSurf(), 3, false);
+  const std::string name = surf.Save(tmp.Path()).keyframes_file;
+  const std::string bytes = ReadFileToString(tmp.Path(name));
+  const nlohmann::json manifest = nlohmann::json::parse(ReadFileToString(tmp.Path("manifest.json")));
+  const size_t rows = FileLayout(bytes).Section(keyframe_file::kDescriptors);
+  const size_t floats = surf.num_features() * 64;
+  std::mt19937_64 rng(1717);
+  int loaded = 0, refused = 0;
+  for (int i = 0; i < 300; ++i) {
+    std::string bad = bytes;
+    const size_t at = rows + 4 * (rng() % floats);
+    uint32_t bits = static_cast<uint32_t>(rng());
+    if (rng() % 2) bits |= 0x7f800000u;  // inf or NaN, any sign and payload
+    PutAt<uint32_t>(&bad, at, bits);
+    float value;
+    std::memcpy(&value, &bits, 4);
+    WriteResealedDatabase(tmp.Path(), name, manifest, bad);
+    try {
+      Database::Load(tmp.Path());
+      ++loaded;
+      EXPECT_TRUE(std::isfinite(value)) << bits;
+    } catch (const std::runtime_error& e) {
+      ++refused;
+      EXPECT_FALSE(std::isfinite(value)) << e.what();
+    }
+  }
+  EXPECT_GT(loaded, 50);
+  EXPECT_GT(refused, 50);
+}
+
+}  // namespace
+}  // namespace placedb
