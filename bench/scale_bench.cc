@@ -58,6 +58,7 @@
 #include "placedb/build/builder.h"
 #include "placedb/session/place_database.h"
 #include "placedb/match/hamming.h"
+#include "placedb/util/check.h"
 #include "placedb/util/timer.h"
 
 namespace fs = std::filesystem;
@@ -317,7 +318,7 @@ int main(int argc, char** argv) {
     for (const std::string& m : modes) placedb::ParseRetrievalMethod(m);  // a typo fails early
     fs::create_directories(out);
     const std::vector<std::string> sources = SampleImages(data);
-    if (sources.empty()) throw std::runtime_error("no sample images under " + data);
+    if (sources.empty()) PLACEDB_THROW_NOT_FOUND("no sample images under ", data);
     const placedb::AugmentOptions keyframe_aug;
     const placedb::AugmentOptions query_aug = QueryAugmentOptions();
     const unsigned cpus = std::max(1u, std::thread::hardware_concurrency());

@@ -9,11 +9,11 @@
 #include <opencv2/core.hpp>
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgcodecs.hpp>
-#include <stdexcept>
 #include <string>
 
 #include "placedb/feature/surf/surf.h"
 #include "placedb/feature/surf/surf_simd.h"
+#include "placedb/util/check.h"
 
 namespace {
 
@@ -27,7 +27,8 @@ const cv::Mat& Image(int index) {
       cv::imread(std::string(PLACEDB_DATA_DIR) + kImages[0], cv::IMREAD_GRAYSCALE),
       cv::imread(std::string(PLACEDB_DATA_DIR) + kImages[1], cv::IMREAD_GRAYSCALE),
   };
-  if (images[index].empty()) throw std::runtime_error(std::string("cannot read ") + kImages[index]);
+  if (images[index].empty())
+    PLACEDB_THROW_NOT_FOUND("cannot read ", PLACEDB_DATA_DIR, kImages[index]);
   return images[index];
 }
 

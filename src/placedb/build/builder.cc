@@ -168,14 +168,16 @@ nlohmann::json BuildSettingsToJson(const BuildOptions& o) {
 }
 
 BuildOptions BuildOptionsFromManifest(const nlohmann::json& manifest, const std::string& dir) {
-  const JsonReader m(manifest, dir + "/manifest.json", /*runtime_errors=*/true);
+  const JsonReader m(manifest, dir + "/manifest.json", JsonOrigin::kDatabaseFile);
   const JsonReader s = m.Child("settings");
   BuildOptions o;
+  // The parsers say InvalidArgument (a caller's bad name); in a manifest the
+  // same name is a damaged database.
   try {
     o.crop = ParseCropMode(s.String("crop"));
     o.features.type = ParseFeatureType(s.Child("features").String("type"));
-  } catch (const std::invalid_argument& e) {
-    PLACEDB_THROW_RUNTIME(dir, "/manifest.json: ", e.what());
+  } catch (const InvalidArgument& e) {
+    PLACEDB_THROW_CORRUPT(dir, "/manifest.json: ", e.message());
   }
   o.resize = static_cast<int>(s.Integer("resize", 1, 16));
   s.Read("store_images", &o.store_images);
@@ -217,8 +219,8 @@ BuildOptions BuildOptionsFromManifest(const nlohmann::json& manifest, const std:
   if (s.Has("index")) {
     try {
       o.index = ParseIndexKind(s.String("index"));
-    } catch (const std::invalid_argument& e) {
-      PLACEDB_THROW_RUNTIME(dir, "/manifest.json: settings: ", e.what());
+    } catch (const InvalidArgument& e) {
+      PLACEDB_THROW_CORRUPT(dir, "/manifest.json: settings: ", e.message());
     }
   }
   if (o.index == IndexKind::kBow) {
@@ -235,7 +237,7 @@ BuildOptions BuildOptionsFromManifest(const nlohmann::json& manifest, const std:
     s.Child("bow").Read("direct_level", &o.bow.direct_level);
   }
   const std::string reason = o.Check();
-  if (!reason.empty()) PLACEDB_THROW_RUNTIME(dir, "/manifest.json: settings: ", reason);
+  if (!reason.empty()) PLACEDB_THROW_CORRUPT(dir, "/manifest.json: settings: ", reason);
   return o;
 }
 
@@ -262,7 +264,12 @@ bool LooksLikeDatabase(const fs::path& dir) {
 fs::path NormalizeOutputPath(const std::string& out_dir) {
   fs::path p = fs::absolute(out_dir).lexically_normal();
   while (!p.has_filename() && p.has_parent_path() && p != p.root_path()) p = p.parent_path();
-  if (p.filename() == "." || p.filename() == "..") p = fs::weakly_canonical(p);
+  if (p.filename() == "." || p.filename() == "..") {
+    std::error_code ec;
+    const fs::path canonical = fs::weakly_canonical(p, ec);
+    if (ec) PLACEDB_THROW_READ_ERROR(ec.value(), "cannot resolve the output path ", out_dir);
+    p = canonical;
+  }
   if (p == p.root_path() || p.filename().empty()) {
     PLACEDB_THROW_INVALID("cannot build a database at ", out_dir, " (", p.string(), ")");
   }
@@ -297,18 +304,22 @@ void CommitDirectory(const fs::path& tmp, const fs::path& out) {
   SyncDirectory(tmp.string());
   std::error_code ec;
   if (!fs::exists(out, ec)) {
-    fs::rename(tmp, out);
+    fs::rename(tmp, out, ec);
+    if (ec) PLACEDB_THROW_IO("cannot move the new database to ", out.string(), ": ", ec.message());
   } else {
 #ifdef RENAME_EXCHANGE
     if (::renameat2(AT_FDCWD, tmp.c_str(), AT_FDCWD, out.c_str(), RENAME_EXCHANGE) != 0) {
-      PLACEDB_THROW_RUNTIME("cannot replace ", out.string(), ": ", std::strerror(errno));
+      PLACEDB_THROW_IO("cannot replace ", out.string(), ": ", std::strerror(errno));
     }
-    fs::remove_all(tmp);  // now holds the old database
+    // Now holds the old database; the new one is in place whatever happens here.
+    fs::remove_all(tmp, ec);
+    if (ec) spdlog::warn("cannot remove the old database {}: {}", tmp.string(), ec.message());
 #else
     const fs::path old = out.string() + ".old";
-    fs::rename(out, old);
-    fs::rename(tmp, out);
-    fs::remove_all(old);
+    fs::rename(out, old, ec);
+    if (!ec) fs::rename(tmp, out, ec);
+    if (ec) PLACEDB_THROW_IO("cannot replace ", out.string(), ": ", ec.message());
+    fs::remove_all(old, ec);
 #endif
   }
   SyncDirectory(out.parent_path().empty() ? "." : out.parent_path().string());
@@ -367,7 +378,7 @@ IndexFiles WriteBowIndex(const Database& db, const BuildOptions& options, const 
   const std::string index_name = SaveBowIndexFile(index, dir);
   const fs::path index_path = fs::path(dir) / index_name;
   IndexFiles files;
-  files.bytes = fs::file_size(vocabulary_path) + fs::file_size(index_path);
+  files.bytes = FileSize(vocabulary_path.string()) + FileSize(index_path.string());
   files.manifest = {{"kind", "bow"},
                     {"vocabulary", kVocabularyFile},
                     {"vocabulary_words", vocabulary->num_words()},
@@ -380,7 +391,7 @@ IndexFiles WriteBowIndex(const Database& db, const BuildOptions& options, const 
 BuildReport BuildDatabase(const std::vector<Frame>& frames, const BuildOptions& options,
                           const std::string& out_dir, const std::string& source_description) {
   PLACEDB_CHECK_OPTIONS(options);
-  PLACEDB_CHECK(!out_dir.empty(), "an output directory is needed");
+  if (out_dir.empty()) PLACEDB_THROW_INVALID("an output directory is needed");
   Timer timer;
   const fs::path out = NormalizeOutputPath(out_dir);
   std::error_code ec;
@@ -395,15 +406,17 @@ BuildReport BuildDatabase(const std::vector<Frame>& frames, const BuildOptions& 
     }
     if (!empty && !options.overwrite) {
       PLACEDB_THROW_INVALID("a database already exists at ", out.string(),
-                            " (use --overwrite to replace it)");
+                            " (`overwrite` to replace it)");
     }
   }
   if (frames.empty()) PLACEDB_THROW_INVALID("no frames to build a database from");
-  fs::create_directories(out.parent_path());
+  fs::create_directories(out.parent_path(), ec);
+  if (ec) PLACEDB_THROW_IO("cannot create ", out.parent_path().string(), ": ", ec.message());
   RemoveAbandonedBuilds(out);
   const fs::path tmp = out.string() + ".building." + std::to_string(::getpid());
-  fs::remove_all(tmp);
-  fs::create_directories(tmp / "images");
+  fs::remove_all(tmp, ec);
+  fs::create_directories(tmp / "images", ec);
+  if (ec) PLACEDB_THROW_IO("cannot create ", (tmp / "images").string(), ": ", ec.message());
 
   try {
     const auto extractor = FeatureExtractor::Create(options.features);
@@ -417,10 +430,7 @@ BuildReport BuildDatabase(const std::vector<Frame>& frames, const BuildOptions& 
       const Frame& frame = frames[i];
       cv::Mat image = LoadFrameImage(frame);
       if (image.empty()) {
-        if (options.strict) {
-          PLACEDB_THROW_RUNTIME("cannot read image ", frame.image_path, " (frame ", frame.id,
-                                "; --strict)");
-        }
+        if (options.strict) ThrowUnreadableFrame(frame, "; `strict`");
         progress.Advance();
         return;
       }
@@ -463,10 +473,10 @@ BuildReport BuildDatabase(const std::vector<Frame>& frames, const BuildOptions& 
     report.num_keyframes = db.size();
     report.num_features = db.num_features();
     if (db.empty()) {
-      PLACEDB_THROW_RUNTIME("none of the ", frames.size(),
+      PLACEDB_THROW_INVALID("none of the ", frames.size(),
                             " images could be read; no database built");
     }
-    if (!options.store_images) fs::remove_all(tmp / "images");
+    if (!options.store_images) fs::remove_all(tmp / "images", ec);
 
     nlohmann::json& info = db.info();
     info["settings"] = BuildSettingsToJson(options);

@@ -17,7 +17,7 @@ namespace placedb {
 
 enum class CropMode { kNone, kChroma };
 const char* CropModeName(CropMode mode);
-// Parses "none" / "chroma"; throws std::invalid_argument.
+// Parses "none" / "chroma"; throws InvalidArgument.
 CropMode ParseCropMode(const std::string& name);
 
 // The bag-of-words files of a database built with index bow (named in its
@@ -33,7 +33,7 @@ bool IsBowIndexFileName(const std::string& name);
 enum class IndexKind { kNone, kBow };
 // "none" / "bow".
 const char* IndexKindName(IndexKind kind);
-// Parses "none" / "bow"; throws std::invalid_argument.
+// Parses "none" / "bow"; throws InvalidArgument.
 IndexKind ParseIndexKind(const std::string& name);
 
 struct BuildOptions {
@@ -116,8 +116,8 @@ BuildReport BuildDatabase(const std::vector<Frame>& frames, const BuildOptions& 
 
 // JSON of the settings a database was built with (stored in the manifest,
 // "settings"), and the settings read back from a manifest: every field is
-// type-checked strictly and the whole is Check()ed; a bad one is a
-// std::runtime_error naming `dir` and the field. (The run-time fields
+// type-checked strictly and the whole is Check()ed; a bad one is
+// CorruptDatabase naming `dir` and the field. (The run-time fields
 // threads, strict, progress and overwrite are not stored.)
 nlohmann::json BuildSettingsToJson(const BuildOptions& options);
 BuildOptions BuildOptionsFromManifest(const nlohmann::json& manifest, const std::string& dir);

@@ -289,11 +289,11 @@ TEST(BuilderTest, EverySettingRoundTripsAtItsRangeLimits) {
   nlohmann::json manifest;
   manifest["settings"] = BuildSettingsToJson(hi);
   manifest["settings"]["vocabulary"]["seed"] = -1;
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { BuildOptionsFromManifest(manifest, "m"); },
-                                             {"seed is negative"}));
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { BuildOptionsFromManifest(manifest, "m"); },
+                                          {"seed is negative"}));
   manifest["settings"]["vocabulary"]["seed"] = 1.5;
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { BuildOptionsFromManifest(manifest, "m"); },
-                                             {"seed is not an integer"}));
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { BuildOptionsFromManifest(manifest, "m"); },
+                                          {"seed is not an integer"}));
 }
 
 // A manifest is input from outside: every field is type-checked strictly and
@@ -305,8 +305,8 @@ TEST(BuilderTest, MalformedManifestSettingsAreRejected) {
   auto fails = [&](const std::function<void(nlohmann::json&)>& edit, const std::string& part) {
     nlohmann::json bad = good;
     edit(bad);
-    return ThrowsWith<std::runtime_error>([&] { BuildOptionsFromManifest(bad, "db"); },
-                                          {"db/manifest.json", part});
+    return ThrowsWith<CorruptDatabase>([&] { BuildOptionsFromManifest(bad, "db"); },
+                                       {"db/manifest.json", part});
   };
   EXPECT_TRUE(fails([](nlohmann::json& m) { m.erase("settings"); }, "settings is missing"));
   EXPECT_TRUE(
@@ -396,8 +396,9 @@ TEST(BuilderTest, UnreadableImageIsSkippedOrFatalWhenStrict) {
 
   BuildOptions strict = SmallBuild();
   strict.strict = true;
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>(
-      [&] { BuildDatabase(frames, strict, tmp.Path("strict_db"), "mixed"); }, "cannot read image"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
+      [&] { BuildDatabase(frames, strict, tmp.Path("strict_db"), "mixed"); },
+      {"cannot read image", "x.jpg", "strict"}));
   EXPECT_FALSE(fs::exists(tmp.Path("strict_db")));
   EXPECT_TRUE(BuildingLeftovers(tmp.Path()).empty());
 }
@@ -409,7 +410,7 @@ TEST(BuilderTest, ExistingDatabaseNeedsOverwrite) {
   EXPECT_EQ(BuildDatabase(ListImageFolder(kImages, 1, 5), options, out, "five").num_keyframes, 5u);
   const std::string bin5 = KeyframeFile(out);
 
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
       [&] { BuildDatabase(ListImageFolder(kImages, 1, 8), options, out, "eight"); },
       "a database already exists"));
   EXPECT_EQ(KeyframeFile(out), bin5);
@@ -432,10 +433,10 @@ TEST(BuilderTest, ExistingDatabaseNeedsOverwrite) {
   ASSERT_EQ(unreadable.size(), 2u);
   BuildOptions strict = options;
   strict.strict = true;
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { BuildDatabase(unreadable, strict, out, "x"); },
-                                             "cannot read image"));
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { BuildDatabase(unreadable, options, out, "x"); },
-                                             "none of the 2 images could be read"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { BuildDatabase(unreadable, strict, out, "x"); },
+                                          "cannot read image"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { BuildDatabase(unreadable, options, out, "x"); },
+                                          "none of the 2 images could be read"));
   db = Database::Load(out);
   EXPECT_EQ(db.size(), 8u);
   EXPECT_EQ(KeyframeFile(out), bin8);
@@ -452,20 +453,24 @@ TEST(BuilderTest, RefusesNonDatabaseOutputs) {
   const std::string other = tmp.Path("my_documents");
   fs::create_directories(other);
   WriteBytes(other + "/notes.txt", "precious");
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { BuildDatabase(frames, options, other, "x"); },
-                                                "is not empty and is not a placedb database"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { BuildDatabase(frames, options, other, "x"); },
+                                          "is not empty and is not a placedb database"));
   EXPECT_EQ(ReadFileToString(other + "/notes.txt"), "precious");
   EXPECT_FALSE(fs::exists(other + "/manifest.json"));
 
   const std::string file = tmp.Path("a_file");
   WriteBytes(file, "content");
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { BuildDatabase(frames, options, file, "x"); },
-                                                "is not a directory"));
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { BuildDatabase(frames, options, file, "x"); },
+                                          "is not a directory"));
+  // Outputs the system refuses (root included): IoError, and no debris.
+  EXPECT_TRUE(ThrowsWith<IoError>([&] { BuildDatabase(frames, options, file + "/db", "x"); },
+                                  {"cannot create", "a_file"}));
+  EXPECT_THROW(BuildDatabase(frames, options, "/proc/placedb_test_db", "x"), IoError);
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
       [&] { BuildDatabase({}, options, tmp.Path("empty_db"), "x"); }, "no frames"));
   BuildOptions bad = options;
   bad.resize = 2;
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
       [&] { BuildDatabase(frames, bad, tmp.Path("bad_db"), "x"); }, "resize must be 1, 4 or 16"));
   EXPECT_FALSE(fs::exists(tmp.Path("bad_db")));
 
@@ -486,8 +491,8 @@ TEST(BuilderTest, RefusesNonDatabaseOutputs) {
   EXPECT_EQ(Database::Load(tmp.Path("dot")).size(), 2u);
   EXPECT_EQ(Database::Load(tmp.Path("up")).size(), 2u);
   EXPECT_TRUE(BuildingLeftovers(tmp.Path()).empty());
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
-      [&] { BuildDatabase(frames, SmallBuild(), "/", "x"); }, "cannot build a database at /"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { BuildDatabase(frames, SmallBuild(), "/", "x"); },
+                                          "cannot build a database at /"));
 }
 
 TEST(BuilderTest, TinyImagesGiveKeyframesWithoutFeatures) {

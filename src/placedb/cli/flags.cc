@@ -4,6 +4,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <charconv>
 #include <iostream>
 
 #include "placedb/dataset/image_folder.h"
@@ -65,26 +66,26 @@ std::vector<Frame> SourceArgs::Read() const {
     o.max_time_difference = tum_options.max_time_difference;
     if (!bag_tf.empty()) {
       const size_t comma = bag_tf.find(',');
-      if (comma == std::string::npos) PLACEDB_THROW_INVALID("--bag-tf takes PARENT,CHILD");
+      if (comma == std::string::npos) PLACEDB_THROW_INVALID("`bag_tf` takes PARENT,CHILD");
       o.tf_parent = bag_tf.substr(0, comma);
       o.tf_child = bag_tf.substr(comma + 1);
     }
     frames = SelectFrameRange(ReadBagFrames(o), first, last, "bag frame");
 #else
     PLACEDB_THROW_INVALID(
-        "this placedb was built without ROS (-DPLACEDB_WITH_ROS=OFF): --bag is not available");
+        "this placedb was built without ROS (-DPLACEDB_WITH_ROS=OFF): `bag` is not available");
 #endif
   } else {
-    PLACEDB_THROW_INVALID("give --images DIR, --tum DIR or --bag FILE --topic T");
+    PLACEDB_THROW_INVALID("give `images` DIR, `tum` DIR or `bag` FILE `topic` T");
   }
   PLACEDB_CHECK_OPTIONS(image_read);
   SetImageReadOptions(&frames, image_read);
   if (!frame_size.empty()) {
-    const cv::Size size = ParseSize(frame_size, "--frame-size");
+    const cv::Size size = ParseSize(frame_size, "frame_size");
     if (static_cast<int64_t>(size.width) * size.height > image_read.max_pixels) {
-      PLACEDB_THROW_INVALID("--frame-size ", frame_size, " is ",
+      PLACEDB_THROW_INVALID("`frame_size` ", frame_size, " is ",
                             static_cast<int64_t>(size.width) * size.height,
-                            " pixels, more than --max-image-pixels ", image_read.max_pixels);
+                            " pixels, more than `max_image_pixels` ", image_read.max_pixels);
     }
     ResizeFramesTo(&frames, size);
   }
@@ -100,20 +101,20 @@ std::string SourceArgs::Describe() const {
   return what + range + size;
 }
 
-cv::Size ParseSize(const std::string& text, const std::string& flag) {
+cv::Size ParseSize(const std::string& text, const std::string& name) {
+  // Two whole numbers joined by 'x', nothing else around them.
+  auto whole = [](const char* begin, const char* end, int* out) {
+    const auto [ptr, ec] = std::from_chars(begin, end, *out);
+    return begin != end && ec == std::errc() && ptr == end;
+  };
   const size_t x = text.find('x');
   int w = 0, h = 0;
-  try {
-    size_t used_w = 0, used_h = 0;
-    if (x == std::string::npos) throw std::invalid_argument("no x");
-    w = std::stoi(text.substr(0, x), &used_w);
-    h = std::stoi(text.substr(x + 1), &used_h);
-    if (used_w != x || used_h != text.size() - x - 1) throw std::invalid_argument("trailing");
-  } catch (const std::exception&) {
-    PLACEDB_THROW_INVALID(flag, " takes WxH, e.g. 160x120 (got '", text, "')");
+  if (x == std::string::npos || !whole(text.data(), text.data() + x, &w) ||
+      !whole(text.data() + x + 1, text.data() + text.size(), &h)) {
+    PLACEDB_THROW_INVALID("`", name, "` takes WxH, e.g. 160x120 (got '", text, "')");
   }
   if (w < 16 || h < 16 || w > 16384 || h > 16384)
-    PLACEDB_THROW_INVALID(flag, ": each side must be in [16, 16384] (got ", text, ")");
+    PLACEDB_THROW_INVALID("`", name, "`: each side must be in [16, 16384] (got ", text, ")");
   return {w, h};
 }
 
@@ -132,7 +133,7 @@ void TruthArgs::Add(CLI::App* cmd) {
 GroundTruth TruthArgs::Get(const SourceArgs& source, const std::string& command) const {
   if (!csv.empty()) return GroundTruth::FromMatchList(ReadMatchTruth(csv));
   if (!source.images.empty()) {
-    PLACEDB_THROW_INVALID(command, " with --images needs --truth CSV (or use --tum with poses)");
+    PLACEDB_THROW_INVALID(command, " with `images` needs `truth` CSV (or use `tum` with poses)");
   }
   return GroundTruth::FromPoses(thresholds);
 }
@@ -237,8 +238,9 @@ void DatabaseArgs::Add(CLI::App* cmd, const std::string& threads_what) {
 }
 
 namespace {
-// A whole number in [lo, hi] from `text`, or std::invalid_argument naming `flag`.
-int64_t ParseInteger(const std::string& text, const std::string& flag, int64_t lo, int64_t hi) {
+// A whole number in [lo, hi] from `text`, or InvalidArgument naming `what` (an
+// option name, marked in the message, and the part of it).
+int64_t ParseInteger(const std::string& text, const std::string& what, int64_t lo, int64_t hi) {
   size_t used = 0;
   int64_t v = 0;
   try {
@@ -247,7 +249,7 @@ int64_t ParseInteger(const std::string& text, const std::string& flag, int64_t l
     used = 0;
   }
   if (used == 0 || used != text.size() || v < lo || v > hi) {
-    PLACEDB_THROW_INVALID(flag, ": '", text, "' is not a whole number in [", lo, ", ", hi, "]");
+    PLACEDB_THROW_INVALID(what, ": '", text, "' is not a whole number in [", lo, ", ", hi, "]");
   }
   return v;
 }
@@ -258,11 +260,11 @@ PlaceDatabase DatabaseArgs::Open() const {
   if (!features.empty()) o.expected_features = ParseFeatureType(features);
   if (!partition.empty()) {
     const size_t slash = partition.find('/');
-    if (slash == std::string::npos) PLACEDB_THROW_INVALID("--partition takes I/N, e.g. 0/3");
+    if (slash == std::string::npos) PLACEDB_THROW_INVALID("`partition` takes I/N, e.g. 0/3");
     const int n =
-        static_cast<int>(ParseInteger(partition.substr(slash + 1), "--partition N", 1, 4096));
+        static_cast<int>(ParseInteger(partition.substr(slash + 1), "`partition` N", 1, 4096));
     const int i =
-        static_cast<int>(ParseInteger(partition.substr(0, slash), "--partition I", 0, n - 1));
+        static_cast<int>(ParseInteger(partition.substr(0, slash), "`partition` I", 0, n - 1));
     o.subset = KeyframeSubset::Partition(i, n, ParsePartitionScheme(scheme));
   } else if (!keyframes.empty()) {
     std::vector<int32_t> ids;
@@ -270,7 +272,7 @@ PlaceDatabase DatabaseArgs::Open() const {
     while (begin <= keyframes.size()) {
       const size_t comma = std::min(keyframes.find(',', begin), keyframes.size());
       ids.push_back(static_cast<int32_t>(ParseInteger(keyframes.substr(begin, comma - begin),
-                                                      "--keyframes", INT32_MIN, INT32_MAX)));
+                                                      "`keyframes`", INT32_MIN, INT32_MAX)));
       begin = comma + 1;
     }
     o.subset = KeyframeSubset::Ids(std::move(ids));

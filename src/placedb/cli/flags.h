@@ -51,7 +51,7 @@ struct TruthArgs {
 
   void Add(CLI::App* cmd);
   // The ground truth for queries from `source`: a match list is required for
-  // an image folder (std::invalid_argument naming `command`).
+  // an image folder (InvalidArgument naming `command`).
   GroundTruth Get(const SourceArgs& source, const std::string& command) const;
 };
 
@@ -98,8 +98,8 @@ struct DatabaseArgs {
 void WriteJson(const std::string& path, const nlohmann::json& j);
 // "t = (x, y, z) m, q = (x, y, z, w)" or "(no pose)".
 std::string FormatPose(const std::optional<Pose>& pose);
-// "WxH" -> size; throws std::invalid_argument.
-cv::Size ParseSize(const std::string& text, const std::string& flag);
+// "WxH" -> size; throws InvalidArgument naming the option `name` (frame_size).
+cv::Size ParseSize(const std::string& text, const std::string& name);
 
 }  // namespace cli
 }  // namespace placedb

@@ -177,7 +177,7 @@ namespace {
 std::string TooLarge(const std::string& what, const ImageHeader& h, int64_t max_pixels) {
   return fmt::format(
       "{} is {} x {} pixels ({:.1f} megapixels), more than the {} pixels allowed (raise the bound "
-      "with --max-image-pixels / max_image_pixels)",
+      "with `max_image_pixels`)",
       what, h.width, h.height, static_cast<double>(h.width) * static_cast<double>(h.height) / 1e6,
       max_pixels);
 }
@@ -222,6 +222,7 @@ DecodedImage TryReadImageFile(const std::string& path, const ImageReadOptions& o
   const std::string what = "image " + path;
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK | O_NOCTTY);
   if (fd < 0) {
+    out.kind = errno == ENOENT || errno == ENOTDIR ? ErrorKind::kNotFound : ErrorKind::kIo;
     out.error = "cannot read " + what + ": " + std::strerror(errno);
     return out;
   }
@@ -229,6 +230,7 @@ DecodedImage TryReadImageFile(const std::string& path, const ImageReadOptions& o
   struct stat st;
   const uint64_t max_bytes = static_cast<uint64_t>(options.max_pixels) * 12 + (16u << 20);
   if (::fstat(fd, &st) != 0) {
+    out.kind = ErrorKind::kIo;
     out.error = "cannot read " + what + ": " + std::strerror(errno);
   } else if (!S_ISREG(st.st_mode)) {
     out.error = "cannot read " + what + ": not a regular file";
@@ -243,6 +245,10 @@ DecodedImage TryReadImageFile(const std::string& path, const ImageReadOptions& o
     while (done < bytes.size()) {
       const ssize_t got = ::read(fd, &bytes[done], bytes.size() - done);
       if (got < 0 && errno == EINTR) continue;
+      if (got < 0) {
+        out.kind = ErrorKind::kIo;
+        out.error = "cannot read " + what + ": " + std::strerror(errno);
+      }
       if (got <= 0) break;
       done += static_cast<size_t>(got);
     }
@@ -253,9 +259,21 @@ DecodedImage TryReadImageFile(const std::string& path, const ImageReadOptions& o
   return DecodeImage(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size(), options, what);
 }
 
+void ThrowImageError(const DecodedImage& d, const std::string& message) {
+  const std::string& text = message.empty() ? d.error : message;
+  switch (d.kind) {
+    case ErrorKind::kNotFound:
+      PLACEDB_THROW_NOT_FOUND(text);
+    case ErrorKind::kIo:
+      PLACEDB_THROW_IO(text);
+    default:
+      PLACEDB_THROW_INVALID(text);
+  }
+}
+
 cv::Mat ReadImageFile(const std::string& path, const ImageReadOptions& options) {
   DecodedImage d = TryReadImageFile(path, options);
-  if (!d.error.empty()) PLACEDB_THROW_INVALID(d.error);
+  if (!d.error.empty()) ThrowImageError(d);
   return std::move(d.image);
 }
 
@@ -265,7 +283,7 @@ cv::Mat LoadFrameImage(const Frame& frame) {
       frame.read.max_pixels) {
     PLACEDB_THROW_INVALID("frame ", frame.id, ": the simulated camera size ", frame.resize_to.width,
                           "x", frame.resize_to.height, " is more than the ", frame.read.max_pixels,
-                          " pixels allowed (--max-image-pixels)");
+                          " pixels allowed (`max_image_pixels`)");
   }
   cv::Mat image;
   if (frame.load) {
@@ -282,14 +300,24 @@ cv::Mat LoadFrameImage(const Frame& frame) {
   return resized;
 }
 
+void ThrowUnreadableFrame(const Frame& frame, const std::string& context) {
+  struct stat st;
+  if (!frame.load && ::stat(frame.image_path.c_str(), &st) != 0 &&
+      (errno == ENOENT || errno == ENOTDIR)) {
+    PLACEDB_THROW_NOT_FOUND("image ", frame.image_path, " not found (frame ", frame.id, context,
+                            ")");
+  }
+  PLACEDB_THROW_INVALID("cannot read image ", frame.image_path, " (frame ", frame.id, context, ")");
+}
+
 std::vector<Frame> SelectFrameRange(std::vector<Frame> frames, int first, int last,
                                     const std::string& what) {
-  if (first < 1) PLACEDB_THROW_INVALID("first must be >= 1, got ", first);
-  if (last < 0) PLACEDB_THROW_INVALID("last must be >= 0 (0: to the end), got ", last);
+  if (first < 1) PLACEDB_THROW_INVALID("`first` must be >= 1 (got ", first, ")");
+  if (last < 0) PLACEDB_THROW_INVALID("`last` must be >= 0 (0: to the end; got ", last, ")");
   const size_t begin = static_cast<size_t>(first - 1);
   const size_t end = last == 0 ? frames.size() : std::min(frames.size(), static_cast<size_t>(last));
   if (begin >= frames.size() || begin >= end) {
-    PLACEDB_THROW_INVALID("first/last select no ", what, " (", frames.size(), " listed)");
+    PLACEDB_THROW_INVALID("`first` and `last` select no ", what, " (", frames.size(), " listed)");
   }
   return std::vector<Frame>(frames.begin() + static_cast<ptrdiff_t>(begin),
                             frames.begin() + static_cast<ptrdiff_t>(end));

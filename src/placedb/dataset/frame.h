@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "placedb/util/error.h"
 #include "placedb/util/pose.h"
 
 namespace placedb {
@@ -54,7 +55,14 @@ struct DecodedImage {
   cv::Mat image;
   std::string error;
   bool too_large = false;
+  // What kind of error `error` is: kNotFound (no file at the path), kIo (the
+  // file cannot be read), else kInvalidArgument (not an image we decode, or
+  // too large).
+  ErrorKind kind = ErrorKind::kInvalidArgument;
 };
+// Throws the error of `d` (d.error set) as its kind, with `message`
+// (d.error when empty).
+[[noreturn]] void ThrowImageError(const DecodedImage& d, const std::string& message = "");
 // Decodes encoded image bytes (a file's, a message's). `what` names them in
 // `error`. Never throws for bad bytes.
 DecodedImage DecodeImage(const uint8_t* data, size_t size, const ImageReadOptions& options,
@@ -64,8 +72,8 @@ DecodedImage DecodeImage(const uint8_t* data, size_t size, const ImageReadOption
 // DecodeImage does. A path that is not a regular file (a FIFO, a device, a
 // folder) is an error, never a wait.
 DecodedImage TryReadImageFile(const std::string& path, const ImageReadOptions& options);
-// The same, throwing std::invalid_argument with the error ("cannot read
-// image PATH: ...", or "image PATH is W x H pixels, more than ...").
+// The same, throwing the error ("cannot read image PATH: ...", or "image PATH
+// is W x H pixels, more than ..."): NotFound, IoError or InvalidArgument.
 cv::Mat ReadImageFile(const std::string& path, const ImageReadOptions& options);
 
 struct Frame {
@@ -86,13 +94,18 @@ struct Frame {
 
 // Reads a frame's image as 8-bit BGR (resized to frame.resize_to when set),
 // through TryReadImageFile; an empty Mat when it cannot be read or decoded.
-// std::invalid_argument when the file declares more than read.max_pixels
-// pixels, or resize_to is larger than that: the bound is never skipped over
+// InvalidArgument when the file declares more than read.max_pixels pixels,
+// or resize_to is larger than that: the bound is never skipped over
 // silently.
 cv::Mat LoadFrameImage(const Frame& frame);
 
+// For a frame LoadFrameImage could not read: throws NotFound when its image
+// file does not exist, else InvalidArgument ("cannot read image PATH (frame
+// N<context>)"; `context` e.g. "; `strict`").
+[[noreturn]] void ThrowUnreadableFrame(const Frame& frame, const std::string& context = "");
+
 // Frames first..last of a listing (1-based positions; last 0: to the end).
-// std::invalid_argument, naming `what` ("TUM frame", "bag frame"), for
+// InvalidArgument, naming `what` ("TUM frame", "bag frame"), for
 // first < 1, last < 0 or a range that selects nothing.
 std::vector<Frame> SelectFrameRange(std::vector<Frame> frames, int first, int last,
                                     const std::string& what);

@@ -10,6 +10,7 @@
 
 #include "placedb/dataset/text_lines.h"
 #include "placedb/util/check.h"
+#include "placedb/util/file_io.h"
 
 namespace placedb {
 namespace {
@@ -29,13 +30,16 @@ bool HasImageExtension(const fs::path& file) {
 // 0-based [begin, end) it selects.
 std::pair<size_t, size_t> SelectRange(size_t count, int first, int last,
                                       const std::string& source) {
-  if (first < 1) PLACEDB_THROW_INVALID(source, ": first must be >= 1 (1-based), got ", first);
-  if (last < 0) PLACEDB_THROW_INVALID(source, ": last must be >= 0 (0 = to the end), got ", last);
+  if (first < 1) PLACEDB_THROW_INVALID(source, ": `first` must be >= 1 (1-based; got ", first, ")");
+  if (last < 0) {
+    PLACEDB_THROW_INVALID(source, ": `last` must be >= 0 (0: to the end; got ", last, ")");
+  }
   if (last != 0 && first > last) {
-    PLACEDB_THROW_INVALID(source, ": first (", first, ") > last (", last, ")");
+    PLACEDB_THROW_INVALID(source, ": `first` (", first, ") is after `last` (", last, ")");
   }
   if (static_cast<size_t>(first) > count) {
-    PLACEDB_THROW_INVALID(source, ": first = ", first, " is beyond the ", count, " images listed");
+    PLACEDB_THROW_INVALID(source, ": `first` (", first, ") is beyond the ", count,
+                          " images listed");
   }
   size_t end = last == 0 ? count : static_cast<size_t>(last);
   if (end > count) {
@@ -66,10 +70,10 @@ std::vector<Frame> MakeFrames(const std::vector<std::string>& paths, int first, 
 
 std::vector<Frame> ListImageFolder(const std::string& dir, int first, int last) {
   std::error_code ec;
-  if (!fs::is_directory(dir, ec)) PLACEDB_THROW_INVALID("image folder not found: ", dir);
+  if (!fs::is_directory(dir, ec)) PLACEDB_THROW_NOT_FOUND("image folder not found: ", dir);
   std::vector<std::string> names;
   fs::directory_iterator it(dir, ec);
-  if (ec) PLACEDB_THROW_RUNTIME("cannot list image folder ", dir, ": ", ec.message());
+  if (ec) PLACEDB_THROW_READ_ERROR(ec.value(), "cannot list image folder ", dir);
   for (const fs::directory_entry& entry : it) {
     const fs::path& file = entry.path();
     const std::string name = file.filename().string();
@@ -105,6 +109,7 @@ std::vector<Frame> ReadImages(const std::string& path, int first, int last) {
   std::error_code ec;
   if (fs::is_directory(path, ec)) return ListImageFolder(path, first, last);
   if (fs::is_regular_file(path, ec)) return ReadImageList(path, first, last);
+  if (!fs::exists(path, ec)) PLACEDB_THROW_NOT_FOUND("no image folder or image list at ", path);
   PLACEDB_THROW_INVALID("not an image folder nor an image list file: ", path);
 }
 

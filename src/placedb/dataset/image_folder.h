@@ -15,20 +15,21 @@ namespace placedb {
 // position in that sorted listing; `first`/`last` (1-based, inclusive; last = 0
 // means to the end) select a range, ids unchanged. A `last` beyond the listing
 // is clamped with a warning.
-// Errors (std::invalid_argument naming `dir`): missing dir, no images,
-// first < 1, last < 0, first > last, first beyond the listing.
+// Errors naming `dir`: NotFound for a missing dir; InvalidArgument for no
+// images, first < 1, last < 0, first > last, first beyond the listing.
 std::vector<Frame> ListImageFolder(const std::string& dir, int first = 1, int last = 0);
 
 // A text file listing one image path per line (relative paths are relative to
 // the list file's folder; leading/trailing blanks trimmed; blank lines and
 // lines starting with '#' skipped). id = 1-based position among the listed
-// images; `first`/`last` as above. Errors (std::invalid_argument): missing list
-// file, a listed image that does not exist (names list file and line), no
-// images, bad range. An unreadable list file: std::runtime_error.
+// images; `first`/`last` as above. A listed image that does not exist is kept
+// with a warning (names list file and line). Errors: NotFound for a missing
+// list file, IoError for an unreadable one, InvalidArgument for no images or
+// a bad range.
 std::vector<Frame> ReadImageList(const std::string& list_file, int first = 1, int last = 0);
 
 // Either of the two: a directory → ListImageFolder, a regular file →
-// ReadImageList; anything else → std::invalid_argument.
+// ReadImageList; nothing there → NotFound; anything else → InvalidArgument.
 std::vector<Frame> ReadImages(const std::string& path, int first = 1, int last = 0);
 
 }  // namespace placedb

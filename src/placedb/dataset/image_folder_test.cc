@@ -97,20 +97,19 @@ TEST(ImageFolderTest, FiltersExtensionsCaseInsensitivelyAndSortsByName) {
 TEST(ImageFolderTest, FolderErrorsNameTheDir) {
   TempDir tmp;
   const std::string missing = tmp.Path("missing");
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ListImageFolder(missing); }, {missing}));
+  EXPECT_TRUE(ThrowsWith<NotFound>([&] { ListImageFolder(missing); }, {missing}));
 
   tmp.Write("empty/readme.txt", "no images here");
   const std::string empty = tmp.Path("empty");
-  EXPECT_TRUE(
-      ThrowsWith<std::invalid_argument>([&] { ListImageFolder(empty); }, {empty, "no images"}));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { ListImageFolder(empty); }, {empty, "no images"}));
 
   const std::string dir = kData + "/tum_fr2_desk_loop/rgb";
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ListImageFolder(dir, 5, 3); },
-                                                {dir, "first (5) > last (3)"}));
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ListImageFolder(dir, 11); },
-                                                {dir, "beyond the 10 images"}));
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ListImageFolder(dir, 0); }, {dir, "first"}));
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ListImageFolder(dir, 1, -1); }, {dir}));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { ListImageFolder(dir, 5, 3); },
+                                          {dir, "first (5) is after last (3)"}));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { ListImageFolder(dir, 11); },
+                                          {dir, "beyond the 10 images"}));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { ListImageFolder(dir, 0); }, {dir, "first"}));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { ListImageFolder(dir, 1, -1); }, {dir}));
 }
 
 TEST(ImageFolderTest, ImageListWithRelativePathsAndComments) {
@@ -151,12 +150,11 @@ TEST(ImageFolderTest, ImageListErrors) {
   EXPECT_EQ(frames[1].id, 2);
   EXPECT_NE(frames[1].image_path.find("missing.png"), std::string::npos);
   const std::string only_comments = tmp.Write("comments.txt", "# nothing\n\n");
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ReadImageList(only_comments); },
-                                                {only_comments, "no images"}));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { ReadImageList(only_comments); },
+                                          {only_comments, "no images"}));
   const std::string good = tmp.Write("good.txt", "a.png\n");
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ReadImageList(good, 2); }, {good}));
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ReadImageList(tmp.Path("nope.txt")); },
-                                                {"nope.txt"}));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { ReadImageList(good, 2); }, {good}));
+  EXPECT_TRUE(ThrowsWith<NotFound>([&] { ReadImageList(tmp.Path("nope.txt")); }, {"nope.txt"}));
 }
 
 TEST(ImageFolderTest, ReadImagesDispatches) {
@@ -166,8 +164,7 @@ TEST(ImageFolderTest, ReadImagesDispatches) {
   const std::vector<Frame> frames = ReadImages(list);
   ASSERT_EQ(frames.size(), 1u);
   EXPECT_EQ(FileName(frames[0]), "084.jpg");
-  EXPECT_TRUE(
-      ThrowsWith<std::invalid_argument>([&] { ReadImages(tmp.Path("none")); }, {tmp.Path("none")}));
+  EXPECT_TRUE(ThrowsWith<NotFound>([&] { ReadImages(tmp.Path("none")); }, {tmp.Path("none")}));
 }
 
 
@@ -306,15 +303,21 @@ TEST(ImageReadTest, FramesAndFilesGoThroughTheBound) {
   Frame frame;
   frame.id = 7;
   frame.image_path = bomb;
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { LoadFrameImage(frame); },
-                                                {"frame 7", "30000 x 30000", "more than"}));
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ReadImageFile(bomb, ImageReadOptions()); },
-                                                "more than the 40000000 pixels allowed"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { LoadFrameImage(frame); },
+                                          {"frame 7", "30000 x 30000", "more than"}));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { ReadImageFile(bomb, ImageReadOptions()); },
+                                          "more than the 40000000 pixels allowed"));
+  // A missing image is NotFound, a file that is not an image InvalidArgument.
+  EXPECT_TRUE(ThrowsWith<NotFound>(
+      [&] { ReadImageFile(tmp.Path("missing.png"), ImageReadOptions()); }, "missing.png"));
+  const std::string text = tmp.Write("text.png", "not an image");
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { ReadImageFile(text, ImageReadOptions()); },
+                                          {"cannot read image", "text.png"}));
   // A simulated camera larger than the bound.
   frame.image_path = RtabmapImage(1);
   frame.resize_to = cv::Size(16384, 16384);
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { LoadFrameImage(frame); },
-                                                "simulated camera size 16384x16384"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { LoadFrameImage(frame); },
+                                          "simulated camera size 16384x16384"));
   frame.resize_to = cv::Size(160, 120);
   EXPECT_EQ(LoadFrameImage(frame).size(), cv::Size(160, 120));
   // Decoded as cv::imread decodes (JPEG and PNG of the sample data).

@@ -15,8 +15,8 @@ using MatchTruth = std::map<int, std::vector<int>>;
 // ids after the first comma are separated by spaces and/or commas; "41," is a
 // query with no true match. Ids are positive integers. Malformed lines
 // (missing comma, non-numeric or non-positive id, duplicate query id, an id
-// repeated within a line) → std::invalid_argument naming the file and line.
-// Missing file → std::invalid_argument; unreadable → std::runtime_error.
+// repeated within a line) → InvalidArgument naming the file and line.
+// Missing file → NotFound; unreadable → IoError.
 MatchTruth ReadMatchTruth(const std::string& path);
 
 }  // namespace placedb

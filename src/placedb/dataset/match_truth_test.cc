@@ -54,44 +54,41 @@ TEST(MatchTruthTest, SeparatorsEmptyListsAndUnsortedIds) {
 TEST(MatchTruthTest, MalformedLinesNameFileAndLine) {
   TempDir tmp;
   const std::string dup = tmp.Write("dup.csv", "# h\n1,2\n3,4\n1,5\n");
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ReadMatchTruth(dup); },
-                                                {dup + ":4:", "duplicate query id 1", "line 2"}));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { ReadMatchTruth(dup); },
+                                          {dup + ":4:", "duplicate query id 1", "line 2"}));
   const std::string text = tmp.Write("text.csv", "1,2 x3\n");
-  EXPECT_TRUE(
-      ThrowsWith<std::invalid_argument>([&] { ReadMatchTruth(text); }, {text + ":1:", "'x3'"}));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { ReadMatchTruth(text); }, {text + ":1:", "'x3'"}));
   const std::string header = tmp.Write("header.csv", "query,matches\n1,2\n");
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ReadMatchTruth(header); },
-                                                {header + ":1:", "'query'"}));
-  const std::string no_comma = tmp.Write("nocomma.csv", "1,2\n\n3 4 5\n");
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ReadMatchTruth(no_comma); },
-                                                {no_comma + ":3:", "no comma"}));
-  const std::string semicolon = tmp.Write("semicolon.csv", "1,2;3\n");
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ReadMatchTruth(semicolon); },
-                                                {semicolon + ":1:", "'2;3'"}));
-  const std::string zero = tmp.Write("zero.csv", "1,0 2\n");
   EXPECT_TRUE(
-      ThrowsWith<std::invalid_argument>([&] { ReadMatchTruth(zero); }, {zero + ":1:", ">= 1"}));
+      ThrowsWith<InvalidArgument>([&] { ReadMatchTruth(header); }, {header + ":1:", "'query'"}));
+  const std::string no_comma = tmp.Write("nocomma.csv", "1,2\n\n3 4 5\n");
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { ReadMatchTruth(no_comma); },
+                                          {no_comma + ":3:", "no comma"}));
+  const std::string semicolon = tmp.Write("semicolon.csv", "1,2;3\n");
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { ReadMatchTruth(semicolon); },
+                                          {semicolon + ":1:", "'2;3'"}));
+  const std::string zero = tmp.Write("zero.csv", "1,0 2\n");
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { ReadMatchTruth(zero); }, {zero + ":1:", ">= 1"}));
   const std::string repeated = tmp.Write("repeated.csv", "1,2\n2,3 4 3\n");
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ReadMatchTruth(repeated); },
-                                                {repeated + ":2:", "id 3 listed twice"}));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { ReadMatchTruth(repeated); },
+                                          {repeated + ":2:", "id 3 listed twice"}));
   const std::string two_queries = tmp.Write("two.csv", "1 2,3\n");
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ReadMatchTruth(two_queries); },
-                                                {two_queries + ":1:"}));
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ReadMatchTruth(tmp.Path("none.csv")); },
-                                                {"none.csv"}));
+  EXPECT_TRUE(
+      ThrowsWith<InvalidArgument>([&] { ReadMatchTruth(two_queries); }, {two_queries + ":1:"}));
+  EXPECT_TRUE(ThrowsWith<NotFound>([&] { ReadMatchTruth(tmp.Path("none.csv")); }, {"none.csv"}));
 }
 
 // A binary file given as ground truth: one clear line, never its raw bytes.
 TEST(MatchTruthTest, BinaryFilesGiveAPrintableError) {
   testing_util::TempDir tmp;
   const std::string png = tmp.Write("truth.png", std::string("\x89PNG\r\n\x1a\n\0\0\0\rIHDR", 16));
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ReadMatchTruth(png); },
-                                                {"not a text file", "NUL bytes"}));
+  EXPECT_TRUE(
+      ThrowsWith<InvalidArgument>([&] { ReadMatchTruth(png); }, {"not a text file", "NUL bytes"}));
   const std::string junk = tmp.Write("junk.csv", "1,2\n\x1b[31m\xff\xfe,3\n");
   try {
     ReadMatchTruth(junk);
     ADD_FAILURE() << "no error";
-  } catch (const std::invalid_argument& e) {
+  } catch (const InvalidArgument& e) {
     const std::string message = e.what();
     EXPECT_NE(message.find(junk + ":2:"), std::string::npos) << message;
     EXPECT_NE(message.find("\\x1b"), std::string::npos) << message;

@@ -38,11 +38,11 @@ bool IsRegularFile(const std::string& path) {
 
 std::vector<TextLine> ReadDataLines(const std::string& path, const std::string& what) {
   std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) PLACEDB_THROW_INVALID(what, " not found: ", path);
+  if (!std::filesystem::exists(path, ec)) PLACEDB_THROW_NOT_FOUND(what, " not found: ", path);
   if (std::filesystem::is_directory(path, ec)) {
     PLACEDB_THROW_INVALID(what, " is a directory, expected a text file: ", path);
   }
-  std::string content = ReadFileToString(path);  // std::runtime_error when unreadable
+  std::string content = ReadFileToString(path);  // IoError when unreadable
   if (content.compare(0, 3, "\xEF\xBB\xBF") == 0) content.erase(0, 3);
   if (content.find('\0') != std::string::npos) {
     PLACEDB_THROW_INVALID(what, " ", path, " is not a text file (it holds NUL bytes)");
@@ -96,7 +96,7 @@ std::string Printable(const std::string& text, size_t max_bytes) {
 void ThrowLineError(const std::string& path, int line, const std::string& message) {
   // The data file's location is the useful one here, not this helper's. The
   // message quotes the file, which may hold anything: only printable bytes.
-  throw std::invalid_argument(path + ":" + std::to_string(line) + ": " + Printable(message, 300));
+  PLACEDB_THROW_INVALID(path, ":", line, ": ", Printable(message, 300));
 }
 
 double ParseDouble(const std::string& token, const std::string& path, int line,

@@ -24,15 +24,16 @@ bool IsRegularFile(const std::string& path);
 
 // The lines of `path` that are neither blank nor comments ('#' as first
 // non-blank character); handles CRLF line ends and a UTF-8 byte-order mark.
-// A missing file throws std::invalid_argument (`what` describes the file's
-// role, e.g. "ground-truth file"); an unreadable one std::runtime_error.
+// A missing file throws NotFound (`what` describes the file's role, e.g.
+// "ground-truth file"), a folder or a binary file InvalidArgument, an
+// unreadable one IoError.
 std::vector<TextLine> ReadDataLines(const std::string& path, const std::string& what);
 
 // Splits `text` at any run of the characters in `separators`; no empty fields.
 std::vector<std::string> SplitFields(const std::string& text, const std::string& separators);
 
-// Throws std::invalid_argument "<path>:<line>: <message>" (the data file's
-// location only: unlike PLACEDB_THROW_INVALID, no source-code location).
+// Throws InvalidArgument "<path>:<line>: <message>" (the data file's
+// location; the source line is only in where(), as always).
 [[noreturn]] void ThrowLineError(const std::string& path, int line, const std::string& message);
 
 // Parse a whole token as a finite double / an int, or ThrowLineError naming

@@ -32,9 +32,9 @@ struct TumPoseStamped {
 
 // Reads a TUM trajectory ("timestamp tx ty tz qx qy qz qw" lines, '#'
 // comments), in file order. Malformed lines (field count, non-numeric token,
-// quaternion norm off 1 by more than 1e-2) → std::invalid_argument naming the
-// file and line; quaternions within tolerance are normalised. Missing file →
-// std::invalid_argument; unreadable → std::runtime_error.
+// quaternion norm off 1 by more than 1e-2) → InvalidArgument naming the file
+// and line; quaternions within tolerance are normalised. Missing file →
+// NotFound; unreadable → IoError.
 std::vector<TumPoseStamped> ReadTumTrajectory(const std::string& path);
 
 // Gives each frame the pose of `poses` nearest to its timestamp (ties: the
@@ -48,8 +48,9 @@ size_t AssignNearestPoses(std::vector<Frame>* frames, std::vector<TumPoseStamped
 // path. Each frame gets the ground-truth pose nearest in time (ties: the
 // earlier pose) if |dt| <= max_time_difference, else no pose (kept; one
 // summary warning). groundtruth.txt missing → every frame pose-less, with one
-// warning. Errors (std::invalid_argument): missing dir or rgb.txt, malformed
-// lines (file:line), a listed image that does not exist (file:line), no frames.
+// warning. Errors: NotFound for a missing dir or rgb.txt; InvalidArgument for
+// malformed lines (file:line) or no frames. A listed image that does not exist
+// is kept with a warning (file:line).
 std::vector<Frame> ReadTumSequence(const std::string& dir,
                                    const TumOptions& options = TumOptions());
 

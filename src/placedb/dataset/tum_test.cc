@@ -201,26 +201,25 @@ TEST(TumTest, MalformedTrajectoryLinesNameFileAndLine) {
   const std::string good = "1.0 0 0 0 0 0 0 1\n";
   const std::string short_line =
       tmp.Write("short/groundtruth.txt", header + good + "2.0 1 2 3 4\n");
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
-      [&] { ReadTumTrajectory(short_line); }, {short_line + ":4:", "expected 8 numbers", "got 5"}));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { ReadTumTrajectory(short_line); },
+                                          {short_line + ":4:", "expected 8 numbers", "got 5"}));
   const std::string text = tmp.Write("text/groundtruth.txt", header + "1.0 0 0 abc 0 0 0 1\n");
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ReadTumTrajectory(text); },
-                                                {text + ":3:", "'abc'", "tz"}));
+  EXPECT_TRUE(
+      ThrowsWith<InvalidArgument>([&] { ReadTumTrajectory(text); }, {text + ":3:", "'abc'", "tz"}));
   const std::string non_unit =
       tmp.Write("quat/groundtruth.txt", good + good + "3.0 0 0 0 0 0 0 0.9\n");
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ReadTumTrajectory(non_unit); },
-                                                {non_unit + ":3:", "quaternion"}));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { ReadTumTrajectory(non_unit); },
+                                          {non_unit + ":3:", "quaternion"}));
   const std::string nan = tmp.Write("nan/groundtruth.txt", "nan 0 0 0 0 0 0 1\n");
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ReadTumTrajectory(nan); }, {nan + ":1:"}));
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ReadTumTrajectory(tmp.Path("none.txt")); },
-                                                {"none.txt"}));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { ReadTumTrajectory(nan); }, {nan + ":1:"}));
+  EXPECT_TRUE(ThrowsWith<NotFound>([&] { ReadTumTrajectory(tmp.Path("none.txt")); }, {"none.txt"}));
 
   // The same errors surface through ReadTumSequence.
   const std::string bad_gt = header + good + "2.0 1 2 3 4\n";
   TempDir seq;
   const std::string dir = WriteTumFolder(seq, "1.0 rgb/1.png\n", &bad_gt);
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ReadTumSequence(dir); },
-                                                {"groundtruth.txt:4:", "expected 8 numbers"}));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { ReadTumSequence(dir); },
+                                          {"groundtruth.txt:4:", "expected 8 numbers"}));
 }
 
 TEST(TumTest, MalformedRgbListNamesFileAndLine) {
@@ -228,14 +227,14 @@ TEST(TumTest, MalformedRgbListNamesFileAndLine) {
     TempDir tmp;
     const std::string dir =
         WriteTumFolder(tmp, "# rgb\n1.0 rgb/1.png\n2.0 rgb/2.png extra\n", nullptr);
-    EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ReadTumSequence(dir); },
-                                                  {"rgb.txt:3:", "expected 2 fields", "got 3"}));
+    EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { ReadTumSequence(dir); },
+                                            {"rgb.txt:3:", "expected 2 fields", "got 3"}));
   }
   {
     TempDir tmp;
     const std::string dir = WriteTumFolder(tmp, "1.0 rgb/1.png\n1.x rgb/2.png\n", nullptr);
-    EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ReadTumSequence(dir); },
-                                                  {"rgb.txt:2:", "timestamp", "'1.x'"}));
+    EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { ReadTumSequence(dir); },
+                                            {"rgb.txt:2:", "timestamp", "'1.x'"}));
   }
   {
     TempDir tmp;
@@ -250,20 +249,19 @@ TEST(TumTest, MalformedRgbListNamesFileAndLine) {
   {
     TempDir tmp;
     const std::string dir = WriteTumFolder(tmp, "# only a comment\n", nullptr);
-    EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ReadTumSequence(dir); }, {"no frames"}));
+    EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { ReadTumSequence(dir); }, {"no frames"}));
   }
 }
 
 TEST(TumTest, MissingFolderAndBadOptions) {
   TempDir tmp;
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ReadTumSequence(tmp.Path("nowhere")); },
-                                                {tmp.Path("nowhere")}));
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ReadTumSequence(tmp.Path()); },
-                                                {"rgb.txt", tmp.Path()}));
+  EXPECT_TRUE(
+      ThrowsWith<NotFound>([&] { ReadTumSequence(tmp.Path("nowhere")); }, {tmp.Path("nowhere")}));
+  EXPECT_TRUE(ThrowsWith<NotFound>([&] { ReadTumSequence(tmp.Path()); }, {"rgb.txt", tmp.Path()}));
   TumOptions options;
   options.max_time_difference = -1.0;
   EXPECT_FALSE(options.Check().empty());
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
       [&] { ReadTumSequence(kData + "/tum_fr2_pioneer_mini", options); }, {"max_time_difference"}));
   EXPECT_TRUE(TumOptions().Check().empty());
 }

@@ -143,7 +143,7 @@ TEST(VoteCollectorTest, OptionsAreChecked) {
   o.deadline_ms = 0;
   EXPECT_NE(o.Check().find("deadline_ms"), std::string::npos);
   o.deadline_ms = std::nan("");
-  EXPECT_THROW(VoteCollector{o}, std::invalid_argument);
+  EXPECT_THROW(VoteCollector{o}, InvalidArgument);
 }
 
 // Real partitions of a built database, their partial results handed in in a

@@ -32,9 +32,11 @@ std::string CheckOrder(const std::string& lo_name, double lo, const std::string&
 
 // An 8-bit BGR view of `source` (gray and BGRA converted).
 cv::Mat ToBgr(const cv::Mat& source) {
-  PLACEDB_CHECK(!source.empty(), "cannot augment an empty image");
-  PLACEDB_CHECK(source.depth() == CV_8U, "augment needs an 8-bit image (got depth ", source.depth(),
-                ")");
+  if (source.empty()) PLACEDB_THROW_INVALID("cannot augment an empty image");
+  if (source.depth() != CV_8U) {
+    PLACEDB_THROW_INVALID("augmentation needs an 8-bit image (got ",
+                          cv::typeToString(source.type()), ")");
+  }
   if (source.channels() == 3) return source;
   cv::Mat bgr;
   if (source.channels() == 1) {
@@ -42,7 +44,7 @@ cv::Mat ToBgr(const cv::Mat& source) {
   } else if (source.channels() == 4) {
     cv::cvtColor(source, bgr, cv::COLOR_BGRA2BGR);
   } else {
-    PLACEDB_THROW_INVALID("augment needs 1, 3 or 4 channels (got ", source.channels(), ")");
+    PLACEDB_THROW_INVALID("augmentation needs 1, 3 or 4 channels (got ", source.channels(), ")");
   }
   return bgr;
 }
@@ -88,9 +90,10 @@ nlohmann::json AugmentOptionsToJson(const AugmentOptions& o) {
 AugmentParams DrawAugmentParams(cv::Size source_size, uint64_t seed,
                                 const AugmentOptions& options) {
   PLACEDB_CHECK_OPTIONS(options);
-  PLACEDB_CHECK(source_size.width >= 2 && source_size.height >= 2,
-                "an augmentation source needs at least 2 x 2 pixels (got ", source_size.width,
-                " x ", source_size.height, ")");
+  if (source_size.width < 2 || source_size.height < 2) {
+    PLACEDB_THROW_INVALID("an augmentation source needs at least 2 x 2 pixels (got ",
+                          source_size.width, " x ", source_size.height, ")");
+  }
   cv::RNG rng(Mix(Mix(options.seed) ^ seed));
   AugmentParams p;
   // The largest rectangle of the output's aspect ratio inside the source,
@@ -186,18 +189,21 @@ Pose AugmentedPose(int source_index, cv::Size source_size, const AugmentParams& 
 std::vector<Frame> AugmentedFrames(const std::vector<std::string>& sources, size_t count,
                                    uint64_t seed, const AugmentOptions& options) {
   PLACEDB_CHECK_OPTIONS(options);
-  PLACEDB_CHECK(!sources.empty(), "no source images to augment");
-  PLACEDB_CHECK(count >= 1 && count <= static_cast<size_t>(std::numeric_limits<int32_t>::max()),
-                "frame count must be in [1, 2^31) (got ", count, ")");
+  if (sources.empty()) PLACEDB_THROW_INVALID("no source images to augment");
+  if (count < 1 || count > static_cast<size_t>(std::numeric_limits<int32_t>::max())) {
+    PLACEDB_THROW_INVALID("the number of augmented frames must be in [1, 2^31) (got ", count, ")");
+  }
   std::vector<std::shared_ptr<const cv::Mat>> images;
   images.reserve(sources.size());
   for (const std::string& path : sources) {
     const DecodedImage decoded = TryReadImageFile(path, ImageReadOptions());
-    if (decoded.image.empty())
-      PLACEDB_THROW_RUNTIME("cannot read augmentation source ", path, ": ", decoded.error);
+    if (decoded.image.empty()) {
+      ThrowImageError(decoded, "cannot read augmentation source " + path + ": " + decoded.error);
+    }
     cv::Mat image = decoded.image;
-    PLACEDB_CHECK(image.cols >= 2 && image.rows >= 2, "augmentation source ", path,
-                  " is smaller than 2 x 2 pixels");
+    if (image.cols < 2 || image.rows < 2) {
+      PLACEDB_THROW_INVALID("augmentation source ", path, " is smaller than 2 x 2 pixels");
+    }
     images.push_back(std::make_shared<const cv::Mat>(std::move(image)));
   }
   std::vector<Frame> frames(count);

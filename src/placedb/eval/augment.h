@@ -92,13 +92,13 @@ struct AugmentParams {
 };
 
 // The draws for (options.seed, seed) on a source of `source_size` (each side
-// at least 2 pixels; std::invalid_argument otherwise or for bad options).
+// at least 2 pixels; InvalidArgument otherwise or for bad options).
 AugmentParams DrawAugmentParams(cv::Size source_size, uint64_t seed, const AugmentOptions& options);
 
 // One augmentation of `source` (8-bit gray, BGR or BGRA): an 8-bit BGR image
 // of options.width x options.height, the same for the same (source, seed,
 // options) on any thread. An empty source, another depth or bad options are
-// std::invalid_argument.
+// InvalidArgument.
 cv::Mat Augment(const cv::Mat& source, uint64_t seed, const AugmentOptions& options);
 
 // The seed of keyframe `id` (1-based) of a set made with `seed`.
@@ -112,8 +112,9 @@ uint64_t AugmentedFrameSeed(uint64_t seed, int id);
 // (y = z = 0); each view is offset by its crop centre (x, y: up to +-5 cm
 // over the source's width and height) and crop size (z: up to 5 cm), and
 // turned about the optical axis by its rotation. image_path describes the
-// frame ("<source>#aug<k>"). An unreadable source is std::runtime_error; no
-// sources, or a count outside [1, 2^31), std::invalid_argument.
+// frame ("<source>#aug<k>"). A missing source is NotFound, one that is not
+// an image InvalidArgument; no sources, or a count outside [1, 2^31),
+// InvalidArgument.
 std::vector<Frame> AugmentedFrames(const std::vector<std::string>& sources, size_t count,
                                    uint64_t seed, const AugmentOptions& options);
 

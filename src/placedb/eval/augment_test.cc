@@ -101,7 +101,7 @@ TEST(AugmentTest, BadOptionsAndInputsAreRejected) {
     AugmentOptions o;
     change(o);
     EXPECT_FALSE(o.Check().empty());
-    EXPECT_THROW(Augment(source, 1, o), std::invalid_argument);
+    EXPECT_THROW(Augment(source, 1, o), InvalidArgument);
   };
   rejected([](AugmentOptions& o) { o.width = 8; });
   rejected([](AugmentOptions& o) { o.min_crop = 0.0; });
@@ -112,11 +112,11 @@ TEST(AugmentTest, BadOptionsAndInputsAreRejected) {
   rejected([](AugmentOptions& o) { o.max_contrast = 1.0; });
   rejected([](AugmentOptions& o) { o.max_noise_sigma = -1.0; });
   EXPECT_TRUE(AugmentOptions().Check().empty());
-  EXPECT_THROW(Augment(cv::Mat(), 1, AugmentOptions()), std::invalid_argument);
+  EXPECT_THROW(Augment(cv::Mat(), 1, AugmentOptions()), InvalidArgument);
   EXPECT_THROW(Augment(cv::Mat(100, 100, CV_32FC3, cv::Scalar(0)), 1, AugmentOptions()),
-               std::invalid_argument);
+               InvalidArgument);
   EXPECT_THROW(Augment(cv::Mat(1, 100, CV_8UC3, cv::Scalar(0)), 1, AugmentOptions()),
-               std::invalid_argument);
+               InvalidArgument);
 }
 
 TEST(AugmentTest, FramesCycleThroughTheSourcesWithTimesAndPoses) {
@@ -147,9 +147,9 @@ TEST(AugmentTest, FramesCycleThroughTheSourcesWithTimesAndPoses) {
   }
   // Same source, another view: another image.
   EXPECT_FALSE(Same(LoadFrameImage(frames[0]), LoadFrameImage(frames[3])));
-  EXPECT_THROW(AugmentedFrames({}, 3, 5, options), std::invalid_argument);
-  EXPECT_THROW(AugmentedFrames(sources, 0, 5, options), std::invalid_argument);
-  EXPECT_THROW(AugmentedFrames({dir.Path("missing.png")}, 3, 5, options), std::runtime_error);
+  EXPECT_THROW(AugmentedFrames({}, 3, 5, options), InvalidArgument);
+  EXPECT_THROW(AugmentedFrames(sources, 0, 5, options), InvalidArgument);
+  EXPECT_THROW(AugmentedFrames({dir.Path("missing.png")}, 3, 5, options), NotFound);
 }
 
 TEST(AugmentTest, FramesLoadFromTwoThreads) {

@@ -10,7 +10,10 @@ namespace placedb {
 
 std::vector<ScoredKeyframe> BfMatcherQuery(const Database& db, const FeatureSet& query,
                                            const QueryOptions& options) {
-  PLACEDB_CHECK(query.type == db.feature_type(), "query and database feature types differ");
+  if (query.type != db.feature_type()) {
+    PLACEDB_THROW_INVALID("cannot match ", FeatureTypeName(query.type), " query features against ",
+                          "a database of ", FeatureTypeName(db.feature_type()), " features");
+  }
   const bool orb = db.feature_type() == FeatureType::kOrb;
   cv::BFMatcher matcher(orb ? cv::NORM_HAMMING : cv::NORM_L2);
   const MatchOptions& mo = options.match;

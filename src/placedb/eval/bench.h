@@ -52,7 +52,7 @@ struct BenchReport {
 };
 
 // Runs the benchmark of `db` with queries from `frames`. Unreadable frames
-// are skipped with a warning; none readable is std::invalid_argument.
+// are skipped with a warning; none readable is InvalidArgument.
 BenchReport RunBench(const PlaceDatabase& db, const std::vector<Frame>& frames,
                      const BenchOptions& options, const QueryOptions& query_options);
 

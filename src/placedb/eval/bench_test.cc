@@ -110,14 +110,14 @@ TEST(BenchTest, CheckRejectsBadOptions) {
   for (const auto& [options, field] : bad) {
     const std::string reason = options.Check();
     EXPECT_NE(reason.find(field), std::string::npos) << "'" << reason << "' lacks " << field;
-    EXPECT_TRUE(testing_util::ThrowsWith<std::invalid_argument>(
+    EXPECT_TRUE(testing_util::ThrowsWith<InvalidArgument>(
         [&] { RunBench(db, frames, options, QueryOptions()); }, field));
   }
   // No readable query image is an error too.
   Frame missing;
   missing.id = 1;
   missing.image_path = tmp.Path("no_such_image.jpg");
-  EXPECT_TRUE(testing_util::ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(testing_util::ThrowsWith<InvalidArgument>(
       [&] { RunBench(db, {missing}, Quick(), QueryOptions()); }, "no readable query image"));
 }
 

@@ -438,7 +438,7 @@ TEST(EvaluateTest, EmptySelectionAndEmptyDatabaseAreErrors) {
   EvalOptions eval;
   eval.progress = false;
   // No query has truth in an empty list.
-  EXPECT_TRUE(testing_util::ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(testing_util::ThrowsWith<InvalidArgument>(
       [&] { Evaluate(db, train, GroundTruth::FromMatchList({}), eval, QueryOptions()); },
       "no query frame has ground truth"));
   // Partition 0 of 4 of three keyframes holds none.
@@ -446,7 +446,7 @@ TEST(EvaluateTest, EmptySelectionAndEmptyDatabaseAreErrors) {
   open.subset = KeyframeSubset::Partition(0, 4);
   const PlaceDatabase empty = PlaceDatabase::Open(tmp.db(), open);
   ASSERT_TRUE(empty.empty());
-  EXPECT_TRUE(testing_util::ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(testing_util::ThrowsWith<InvalidArgument>(
       [&] {
         Evaluate(empty, train, GroundTruth::FromMatchList({{1, {1}}}), eval, QueryOptions());
       },
@@ -455,7 +455,7 @@ TEST(EvaluateTest, EmptySelectionAndEmptyDatabaseAreErrors) {
   EvalOptions none = eval;
   none.num_queries = 0;
   EXPECT_THROW(Evaluate(db, train, GroundTruth::FromMatchList({{1, {1}}}), none, QueryOptions()),
-               std::invalid_argument);
+               InvalidArgument);
 }
 
 }  // namespace

@@ -156,12 +156,44 @@ nlohmann::json SettingJson(const ExperimentSetting& s) {
           {"verify", s.verify}};
 }
 
+// A JSON file the experiment wrote into its folder: damaged, it is
+// CorruptDatabase (the folder is ours, like a database).
 nlohmann::json ReadJsonFile(const std::string& path) {
   try {
     return nlohmann::json::parse(ReadFileToString(path));
   } catch (const nlohmann::json::exception& e) {
-    PLACEDB_THROW_RUNTIME(path, " is not valid JSON (", e.what(), ")");
+    PLACEDB_THROW_CORRUPT(path, " is not valid JSON (", e.what(), ")");
   }
+}
+
+// A finished setting's results (settings/<name>.json), read back to resume:
+// every field the summary and the pictures read is checked, so that a
+// damaged or edited file is CorruptDatabase naming the field, never a JSON
+// library's exception.
+nlohmann::json ReadSettingFile(const std::string& path, const std::vector<Frame>& queries) {
+  nlohmann::json j = ReadJsonFile(path);
+  const JsonReader file(j, path, JsonOrigin::kDatabaseFile);
+  const JsonReader eval = file.Child("eval");
+  eval.Integer("num_queries", 0, INT32_MAX);
+  const nlohmann::json& records = eval.Member("queries");
+  if (!records.is_array()) eval.Fail("queries", "is not an array");
+  std::set<int64_t> ids;
+  for (const Frame& f : queries) ids.insert(f.id);
+  for (size_t i = 0; i < records.size(); ++i) {
+    const JsonReader q(records[i], eval.where() + ".queries[" + std::to_string(i) + "]",
+                       JsonOrigin::kDatabaseFile);
+    if (ids.count(q.Integer("query_id", INT32_MIN, INT32_MAX)) == 0)
+      q.Fail("query_id", "is not one of the experiment's query frames");
+    q.Boolean("has_true_match_in_db");
+    q.Boolean("correct_at_1");
+    if (q.Boolean("unreadable")) continue;
+    try {
+      q.Member("result").get<QueryResult>();
+    } catch (const InvalidArgument& e) {
+      PLACEDB_THROW_CORRUPT(path, ": ", e.message());
+    }
+  }
+  return j;
 }
 
 // The first key whose value differs between two objects ("" when equal).
@@ -189,25 +221,29 @@ void PrepareFolder(const std::string& out, const nlohmann::json& config, bool ov
   }
   if (fs::is_directory(dir, ec) && !fs::is_empty(dir, ec) && !fs::exists(config_path, ec)) {
     PLACEDB_THROW_INVALID("the folder ", out,
-                          " is not empty and holds no experiment: choose another --out");
+                          " is not empty and holds no experiment: choose another `out`");
   }
   if (fs::exists(config_path, ec)) {
     if (overwrite) {
-      for (const char* name : kOwned) fs::remove_all(dir / name);
+      for (const char* name : kOwned) {
+        fs::remove_all(dir / name, ec);
+        if (ec) PLACEDB_THROW_IO("cannot remove ", (dir / name).string(), ": ", ec.message());
+      }
     } else {
       const nlohmann::json old = ReadJsonFile(config_path.string());
       const std::string diff = FirstDifference(old, config);
       if (!diff.empty()) {
         PLACEDB_THROW_INVALID("the folder ", out,
                               " holds an experiment with other arguments (they differ in '", diff,
-                              "'): use the same arguments to resume, --overwrite to start "
-                              "afresh, or another --out");
+                              "'): use the same arguments to resume, `overwrite` to start "
+                              "afresh, or another `out`");
       }
     }
   }
-  fs::create_directories(dir / "settings");
-  fs::create_directories(dir / "databases");
-  fs::create_directories(dir / "pictures");
+  for (const char* sub : {"settings", "databases", "pictures"}) {
+    fs::create_directories(dir / sub, ec);
+    if (ec) PLACEDB_THROW_IO("cannot create ", (dir / sub).string(), ": ", ec.message());
+  }
   WriteFileAtomic(config_path.string(), DumpJson(config, 2) + "\n");
 }
 
@@ -225,7 +261,10 @@ PlaceDatabase OpenOrBuild(const ExperimentData& data, const ExperimentOptions& o
   const fs::path build_file = out / "databases" / (s.DatabaseName() + ".build.json");
   OpenOptions open;
   open.expected_features = s.features;
-  if (fs::exists(build_file) && fs::exists(db_dir)) {
+  std::error_code ec;
+  if (fs::exists(build_file, ec) && fs::exists(db_dir, ec)) {
+    // Whatever keeps the finished database from opening (damage, a build
+    // killed half-way), it is built again.
     try {
       PlaceDatabase db = PlaceDatabase::Open(db_dir.string(), open);
       *build_json = ReadJsonFile(build_file.string());
@@ -234,7 +273,7 @@ PlaceDatabase OpenOrBuild(const ExperimentData& data, const ExperimentOptions& o
       spdlog::warn("rebuilding {}: {}", db_dir.string(), e.what());
     }
   }
-  fs::remove(build_file);
+  fs::remove(build_file, ec);
   const BuildReport report =
       BuildDatabase(data.database, BuildFor(options, s), db_dir.string(), data.database_from);
   *build_json = BuildReportToJson(report, db_dir.string());
@@ -258,7 +297,13 @@ int32_t AnswerOf(const nlohmann::json& record) {
 }
 
 void WritePng(const fs::path& path, const cv::Mat& image) {
-  if (!cv::imwrite(path.string(), image)) PLACEDB_THROW_RUNTIME("cannot write ", path.string());
+  bool written = false;
+  try {
+    written = cv::imwrite(path.string(), image);
+  } catch (const cv::Exception& e) {
+    PLACEDB_THROW_IO("cannot write ", path.string(), ": ", e.what());
+  }
+  if (!written) PLACEDB_THROW_IO("cannot write ", path.string());
 }
 
 class PictureMaker {
@@ -522,8 +567,9 @@ ExperimentSummary RunExperiment(const ExperimentData& data, const GroundTruth& t
     std::vector<ExperimentSetting> todo;
     for (const ExperimentSetting& s : g.settings) {
       const fs::path file = out / "settings" / (s.Name() + ".json");
-      if (fs::exists(file)) {
-        finished[s.Name()] = ReadJsonFile(file.string());
+      std::error_code ec;
+      if (fs::exists(file, ec)) {
+        finished[s.Name()] = ReadSettingFile(file.string(), data.queries);
         ++summary.num_reused;
         ++index;
         if (options.progress) {
@@ -578,17 +624,19 @@ ExperimentSummary RunExperiment(const ExperimentData& data, const GroundTruth& t
 namespace {
 std::string FindReportScript() {
   if (const char* env = std::getenv("PLACEDB_REPORT_SCRIPT"); env != nullptr && *env != '\0') {
-    if (!fs::is_regular_file(env)) {
-      PLACEDB_THROW_RUNTIME("PLACEDB_REPORT_SCRIPT names ", env, ", which is not a file");
+    std::error_code ec;
+    if (!fs::is_regular_file(env, ec)) {
+      PLACEDB_THROW_NOT_FOUND("PLACEDB_REPORT_SCRIPT names ", env, ", which is not a file");
     }
     return env;
   }
   for (const char* candidate : {PLACEDB_REPORT_SCRIPT_INSTALLED, PLACEDB_REPORT_SCRIPT_SOURCE}) {
-    if (*candidate != '\0' && fs::is_regular_file(candidate)) return candidate;
+    std::error_code ec;
+    if (*candidate != '\0' && fs::is_regular_file(candidate, ec)) return candidate;
   }
-  PLACEDB_THROW_RUNTIME("the report script make_report.py is not installed (looked in '",
-                        PLACEDB_REPORT_SCRIPT_INSTALLED, "' and '", PLACEDB_REPORT_SCRIPT_SOURCE,
-                        "'); set PLACEDB_REPORT_SCRIPT");
+  PLACEDB_THROW_NOT_FOUND("the report script make_report.py is not installed (looked in '",
+                          PLACEDB_REPORT_SCRIPT_INSTALLED, "' and '", PLACEDB_REPORT_SCRIPT_SOURCE,
+                          "'); set PLACEDB_REPORT_SCRIPT");
 }
 
 // Runs argv (no shell) and returns its exit status (-1: did not start).
@@ -612,26 +660,38 @@ int RunProgram(const std::vector<std::string>& args) {
 
 std::string WriteExperimentReport(const std::string& out_dir) {
   const fs::path results = fs::path(out_dir) / "results.json";
-  if (!fs::is_regular_file(results)) {
-    PLACEDB_THROW_RUNTIME("no results.json in ", out_dir, ": run the experiment first");
+  std::error_code ec;
+  if (!fs::is_regular_file(results, ec)) {
+    PLACEDB_THROW_NOT_FOUND("no results.json in ", out_dir, ": run the experiment first");
   }
   const std::string script = FindReportScript();
   const std::string python = PLACEDB_PYTHON;
   if (access(python.c_str(), X_OK) != 0) {
-    PLACEDB_THROW_RUNTIME("the report needs ", python, " (Debian: apt-get install python3 ",
-                          "python3-matplotlib)");
+    PLACEDB_THROW_NOT_FOUND("the report needs ", python, " (Debian: apt-get install python3 ",
+                            "python3-matplotlib)");
   }
   const std::string report = (fs::path(out_dir) / "report.html").string();
+  // make_report.py's exit status: 1 bad input (it printed why), 3 no
+  // matplotlib; RunProgram's -1 and 127: it did not run.
   const int status = RunProgram({python, script, out_dir});
   if (status == 3) {
-    PLACEDB_THROW_RUNTIME("the report needs matplotlib for ", python,
-                          " (Debian: apt-get install python3-matplotlib)");
+    PLACEDB_THROW_NOT_FOUND("the report needs matplotlib for ", python,
+                            " (Debian: apt-get install python3-matplotlib)");
+  }
+  if (status == -1 || status == 127) {
+    PLACEDB_THROW_IO("cannot run the report script ", script, " with ", python);
+  }
+  if (status == 1) {
+    PLACEDB_THROW_CORRUPT("the report script cannot use ", results.string(),
+                          " (its message is above)");
   }
   if (status != 0) {
-    PLACEDB_THROW_RUNTIME("the report script ", script, " failed (exit status ", status,
-                          "); results.json is complete");
+    PLACEDB_THROW_INTERNAL("the report script ", script, " failed (exit status ", status,
+                           "); results.json is complete");
   }
-  if (!fs::is_regular_file(report)) PLACEDB_THROW_RUNTIME("the report script wrote no ", report);
+  if (!fs::is_regular_file(report, ec)) {
+    PLACEDB_THROW_INTERNAL("the report script wrote no ", report);
+  }
   return report;
 }
 

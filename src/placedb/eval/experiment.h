@@ -97,18 +97,22 @@ struct ExperimentSummary {
   std::string results;                // path of results.json
 };
 
-// Runs the experiment into `out_dir` (created). Throws std::invalid_argument
-// for bad options or data, or when `out_dir` holds an experiment with other
-// arguments (without overwrite); std::runtime_error for I/O failures.
+// Runs the experiment into `out_dir` (created). Throws InvalidArgument for
+// bad options or data, or when `out_dir` holds an experiment with other
+// arguments (without overwrite); CorruptDatabase when a file the experiment
+// wrote there (experiment.json, a finished setting's results) is damaged;
+// IoError for failed writes.
 ExperimentSummary RunExperiment(const ExperimentData& data, const GroundTruth& truth,
                                 const ExperimentOptions& options, const std::string& out_dir);
 
 // Writes OUT/report.html from OUT/results.json with the report script
 // (make_report.py; Python 3 with matplotlib), self-contained: figures are
-// embedded. Returns the path. std::runtime_error naming what is missing
-// when the script, python3 or matplotlib cannot be found or the script
-// fails. The script is looked up in $PLACEDB_REPORT_SCRIPT, then the
-// installed share/placedb/, then the source tree this was built from.
+// embedded. Returns the path. NotFound naming what is missing when
+// results.json, the script, python3 or matplotlib cannot be found;
+// CorruptDatabase when the script cannot use results.json; IoError when it
+// cannot be run; InternalError when it fails otherwise. The script is looked up in
+// $PLACEDB_REPORT_SCRIPT, then the installed share/placedb/, then the source tree this was built
+// from.
 std::string WriteExperimentReport(const std::string& out_dir);
 
 // The query options as JSON (what results.json records).

@@ -122,11 +122,22 @@ TEST(ExperimentTest, RunsTheGridResumesAndRefusesOtherArguments) {
   EXPECT_EQ(fs::last_write_time(out + "/databases/orb_none_r1/manifest.json"), built);
   EXPECT_EQ(ReadJson(out + "/results.json")["settings"][7]["eval"]["queries"].size(), 6u);
 
+  // A damaged result of a finished setting (the folder is ours):
+  // CorruptDatabase naming the file and the field, never a JSON exception.
+  const std::string setting_file = out + "/settings/orb_chroma_r4_noverify.json";
+  WriteFileAtomic(setting_file, "{\"eval\": {\"num_queries\": 6}}\n");
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { RunExperiment(data, truth, options, out); },
+                                          {setting_file, "eval.queries is missing"}));
+  WriteFileAtomic(setting_file, "{ not json");
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { RunExperiment(data, truth, options, out); },
+                                          {setting_file, "not valid JSON"}));
+  fs::remove(setting_file);
+
   // Other arguments: refused, naming what differs, unless overwrite.
   ExperimentOptions other = options;
   other.eval.seed = 4;
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { RunExperiment(data, truth, other, out); },
-                                                "differ in 'eval'"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { RunExperiment(data, truth, other, out); },
+                                          "differ in 'eval'"));
   other.overwrite = true;
   other.resizes = {16};
   other.verify = {true};
@@ -140,27 +151,26 @@ TEST(ExperimentTest, RefusesBadFoldersAndData) {
   TempDir tmp;
   const GroundTruth truth = GroundTruth::FromMatchList(ReadMatchTruth(kTruth));
   tmp.Write("busy/notes.txt", "mine");
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
       [&] { RunExperiment(SmallData(), truth, SmallGrid(), tmp.Path("busy")); },
       "holds no experiment"));
   EXPECT_TRUE(fs::exists(tmp.Path("busy/notes.txt")));
   tmp.Write("file", "x");
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
       [&] { RunExperiment(SmallData(), truth, SmallGrid(), tmp.Path("file")); }, "not a folder"));
   ExperimentData no_truth = SmallData();
   no_truth.queries = ReadImages(kImages, 1, 5);  // the truth lists queries 41-84
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
       [&] { RunExperiment(no_truth, truth, SmallGrid(), tmp.Path("x")); }, "ground truth"));
   ExperimentData empty = SmallData();
   empty.database.clear();
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
       [&] { RunExperiment(empty, truth, SmallGrid(), tmp.Path("y")); }, "no database frames"));
 }
 
 TEST(ExperimentReportTest, NeedsResults) {
   TempDir tmp;
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { WriteExperimentReport(tmp.Path()); },
-                                             "no results.json"));
+  EXPECT_TRUE(ThrowsWith<NotFound>([&] { WriteExperimentReport(tmp.Path()); }, "no results.json"));
 }
 
 }  // namespace

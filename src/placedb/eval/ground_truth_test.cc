@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include "placedb/util/error.h"
+
 namespace placedb {
 namespace {
 
@@ -54,7 +56,7 @@ TEST(GroundTruthTest, PoseThresholds) {
   EXPECT_FALSE(truth.HasTruth(pose_less));
   PoseThresholds bad;
   bad.max_angle_deg = 0;
-  EXPECT_THROW(GroundTruth::FromPoses(bad), std::invalid_argument);
+  EXPECT_THROW(GroundTruth::FromPoses(bad), InvalidArgument);
 }
 
 }  // namespace

@@ -187,8 +187,8 @@ cv::Mat DrawQueryMatch(const PlaceDatabase& db, const cv::Mat& query_image,
   p.query = query_image;
   p.keyframe = LoadKeyframePicture(db, id, &p.keyframe_is_original);
   if (p.keyframe.empty()) {
-    PLACEDB_THROW_RUNTIME("cannot read keyframe ", id,
-                          "'s image (neither its source nor a stored PNG)");
+    PLACEDB_THROW_NOT_FOUND("cannot read keyframe ", id,
+                            "'s image (neither its source nor a stored PNG)");
   }
   p.detail = &d;
   p.caption = caption;

@@ -43,7 +43,7 @@ struct MatchPicture {
 
 // The query (left) beside the keyframe (right), matches joined by lines:
 // inliers green, other matches amber, lost ones red; a legend with counts.
-// Throws std::invalid_argument for empty images, a bad height or a `lost`
+// Throws InvalidArgument for empty images, a bad height or a `lost`
 // list of the wrong length.
 cv::Mat DrawMatchPicture(const MatchPicture& picture);
 
@@ -53,8 +53,9 @@ cv::Mat DrawMatchPicture(const MatchPicture& picture);
 cv::Mat LoadKeyframePicture(const PlaceDatabase& db, int32_t id, bool* keyframe_is_original);
 
 // The query against keyframe `id` of `db` as a picture: Explain + the
-// keyframe's image + DrawMatchPicture. Throws std::invalid_argument for an
-// unknown id, std::runtime_error when the keyframe's image cannot be read.
+// keyframe's image + DrawMatchPicture. Throws InvalidArgument for an unknown
+// id, NotFound when the keyframe's image cannot be read (neither its source
+// nor a stored PNG).
 cv::Mat DrawQueryMatch(const PlaceDatabase& db, const cv::Mat& query_image,
                        const FeatureSet& query_features, int32_t id, const QueryOptions& options,
                        const std::string& caption, MatchDetail* detail = nullptr);

@@ -55,13 +55,13 @@ TEST(PicturesTest, DrawsAQueryAgainstItsKeyframe) {
   d.verified = false;
   EXPECT_GT(CountColor(DrawMatchPicture(p), kLostColor), 1000);
   p.lost.resize(3);
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { DrawMatchPicture(p); }, "lost list"));
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { DrawMatchPicture(p); }, "lost list"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
       [&] { DrawQueryMatch(db, query, db.Extract(query), 99, QueryOptions(), ""); },
       "no keyframe 99"));
   p.lost.clear();
   p.query = cv::Mat();
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { DrawMatchPicture(p); }, "empty"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { DrawMatchPicture(p); }, "empty"));
 }
 
 TEST(PicturesTest, DrawsTheCropAndRows) {
@@ -71,12 +71,12 @@ TEST(PicturesTest, DrawsTheCropAndRows) {
   const cv::Mat picture = DrawCropIllustration(image, crop, options, {1, 4, 16});
   EXPECT_EQ(picture.rows, image.rows + 24);
   EXPECT_GT(picture.cols, image.cols + 3 * 150);
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
-      [&] { DrawCropIllustration(image, crop, options, {2}); }, "area divisor"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { DrawCropIllustration(image, crop, options, {2}); },
+                                          "area divisor"));
   const cv::Mat row = DrawImageRow({image, cv::Mat(), image}, {"a", "b", "c"}, 100);
   EXPECT_EQ(row.rows, 124);
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { DrawImageRow({}, {}, 100); }, "no images"));
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { DrawImageRow({image}, {}, 8); }, "height"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { DrawImageRow({}, {}, 100); }, "no images"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { DrawImageRow({image}, {}, 8); }, "height"));
 }
 
 }  // namespace

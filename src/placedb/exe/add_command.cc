@@ -38,15 +38,13 @@ class AddCommand : public Command {
         todo.push_back(&f);
       } else if (!skip_existing_) {
         PLACEDB_THROW_INVALID("frame ", f.id, " (", f.image_path, ") is already a keyframe of ",
-                              db_.dir, " (--skip-existing to leave such frames out)");
+                              db_.dir, " (`skip_existing` to leave such frames out)");
       }
     }
     std::vector<cv::Mat> images(todo.size());
     for (size_t i = 0; i < todo.size(); ++i) {
       images[i] = LoadFrameImage(*todo[i]);
-      if (images[i].empty())
-        PLACEDB_THROW_RUNTIME("cannot read image ", todo[i]->image_path, " (frame ", todo[i]->id,
-                              ")");
+      if (images[i].empty()) ThrowUnreadableFrame(*todo[i]);
     }
     ProgressBar progress("adding", todo.size(), !quiet_);
     for (size_t i = 0; i < todo.size(); ++i) {

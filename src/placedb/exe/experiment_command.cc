@@ -19,7 +19,7 @@ std::vector<std::string> SplitList(const std::string& text, const std::string& f
     const size_t comma = text.find(',', start);
     const std::string item = text.substr(start, comma == std::string::npos ? std::string::npos
                                                                             : comma - start);
-    if (item.empty()) PLACEDB_THROW_INVALID(flag, " has an empty item in '", text, "'");
+    if (item.empty()) PLACEDB_THROW_INVALID("`", flag, "` has an empty item in '", text, "'");
     items.push_back(item);
     if (comma == std::string::npos) break;
     start = comma + 1;
@@ -86,21 +86,22 @@ class ExperimentCommand : public Command {
     options.query = query_.Get();
     options.progress = !quiet_;
     options.features.clear();
-    for (const std::string& f : SplitList(features_, "--features"))
+    for (const std::string& f : SplitList(features_, "features"))
       options.features.push_back(ParseFeatureType(f));
     options.crops.clear();
-    for (const std::string& c : SplitList(crops_, "--crop")) options.crops.push_back(ParseCropMode(c));
+    for (const std::string& c : SplitList(crops_, "crop"))
+      options.crops.push_back(ParseCropMode(c));
     options.resizes.clear();
-    for (const std::string& r : SplitList(resizes_, "--resize")) {
+    for (const std::string& r : SplitList(resizes_, "resize")) {
       if (r != "1" && r != "4" && r != "16") {
-        PLACEDB_THROW_INVALID("--resize takes 1, 4 and 16, got '", r, "'");
+        PLACEDB_THROW_INVALID("`resize` takes 1, 4 and 16 (got '", r, "')");
       }
       options.resizes.push_back(std::stoi(r));
     }
     options.verify.clear();
-    for (const std::string& v : SplitList(verification_, "--verification")) {
+    for (const std::string& v : SplitList(verification_, "verification")) {
       if (v != "on" && v != "off") {
-        PLACEDB_THROW_INVALID("--verification takes on and off, got '", v, "'");
+        PLACEDB_THROW_INVALID("`verification` takes on and off (got '", v, "')");
       }
       options.verify.push_back(v == "on");
     }
@@ -112,7 +113,7 @@ class ExperimentCommand : public Command {
     SourceArgs db_source = source_;
     if (!db_source_.images.empty() || !db_source_.tum.empty()) {
       if (!db_source_.images.empty() && !db_source_.tum.empty()) {
-        PLACEDB_THROW_INVALID("--db-images and --db-tum exclude each other");
+        PLACEDB_THROW_INVALID("`db_images` and `db_tum` exclude each other");
       }
       db_source = SourceArgs();
       db_source.images = db_source_.images;

@@ -35,10 +35,15 @@ class InfoCommand : public Command {
     }
     const BuildOptions& b = place.build_options();
     fmt::print("database        {}\n", EscapeForTerminal(db_.dir));
+    // Descriptive fields the reader does not check: shown only when they are
+    // strings (a damaged one must not end the command with a JSON error).
+    auto text = [&](const char* key) {
+      const auto it = m.find(key);
+      return EscapeForTerminal(it != m.end() && it->is_string() ? it->get<std::string>() : "?");
+    };
     fmt::print("format version  {}\n", m.value("format_version", 0));
-    fmt::print("created         {} by placedb {}\n", EscapeForTerminal(m.value("created", "?")),
-               EscapeForTerminal(m.value("placedb_version", "?")));
-    fmt::print("source          {}\n", EscapeForTerminal(m.value("source", "?")));
+    fmt::print("created         {} by placedb {}\n", text("created"), text("placedb_version"));
+    fmt::print("source          {}\n", text("source"));
     fmt::print("features        {} ({} bytes per descriptor)\n", FeatureTypeName(db.feature_type()),
                db.descriptor_bytes());
     fmt::print("crop            {}\n", CropModeName(b.crop));

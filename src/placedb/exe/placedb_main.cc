@@ -1,6 +1,7 @@
 // The `placedb` command: one sub-command table. Flags bind straight onto the
 // library's options structs, so --help and the code cannot drift apart. Any
-// error, of the arguments or of the work, is one line on stderr and exit 1.
+// error, of the arguments or of the work, is one line on stderr and an exit
+// code of its kind (cli/errors.h: 1 input, 74 I/O, 70 a bug).
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
@@ -10,6 +11,7 @@
 #include <opencv2/core/utils/logger.hpp>
 #include <vector>
 
+#include "placedb/cli/errors.h"
 #include "placedb/cli/flags.h"
 #include "placedb/exe/command.h"
 #include "placedb/util/file_io.h"
@@ -27,6 +29,12 @@ int main(int argc, char** argv) {
   CLI::App app{"placedb: visual place recognition against a compact keyframe database"};
   app.require_subcommand(1);
   app.set_version_flag("--version", std::string("placedb ") + placedb::kPlacedbVersion);
+  bool verbose = false;
+  app.add_flag("--verbose", verbose,
+               "debug logging; an error line also names where in placedb it was raised");
+  // Global flags (--verbose) are taken after the sub-command too: the
+  // sub-commands, registered below, inherit this.
+  app.fallthrough();
   std::vector<std::unique_ptr<cli::Command>> commands;
   commands.push_back(cli::MakeBuildCommand());
   commands.push_back(cli::MakeQueryCommand());
@@ -49,17 +57,17 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     std::fprintf(stderr, "placedb: error: %s (see placedb --help)\n",
                  placedb::EscapeForTerminal(e.what()).c_str());
-    return 1;
+    return cli::kExitInput;
   }
+  if (verbose) spdlog::set_level(spdlog::level::debug);
   try {
     for (const auto& [sub, command] : table) {
       if (sub->parsed()) return command->Run();
     }
     std::fprintf(stderr, "placedb: error: no sub-command given (see placedb --help)\n");
-    return 1;
-  } catch (const std::exception& e) {
+    return cli::kExitInput;
+  } catch (...) {
     // Messages name paths and values from files: escaped, one line.
-    std::fprintf(stderr, "placedb: error: %s\n", placedb::EscapeForTerminal(e.what()).c_str());
-    return 1;
+    return cli::ReportCurrentException("placedb", verbose);
   }
 }

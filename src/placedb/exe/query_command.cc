@@ -35,7 +35,7 @@ class QueryCommand : public Command {
   int Run() override {
     const QueryOptions options = query_.Get();
     if (!draw_.empty() && fs::path(draw_).extension() != ".png") {
-      PLACEDB_THROW_INVALID("--draw needs a .png file name, got ", draw_);
+      PLACEDB_THROW_INVALID("`draw` needs a .png file name (got ", draw_, ")");
     }
     const PlaceDatabase db = db_.Open();
     if (db.empty()) {
@@ -45,7 +45,9 @@ class QueryCommand : public Command {
     PLACEDB_CHECK_OPTIONS(image_read_);
     const DecodedImage decoded = TryReadImageFile(image_, image_read_);
     if (decoded.too_large) PLACEDB_THROW_INVALID("query ", decoded.error);
-    if (decoded.image.empty()) PLACEDB_THROW_INVALID("cannot read query ", decoded.error.substr(12));
+    // "cannot read image PATH: why" -> "cannot read query image PATH: why".
+    if (decoded.image.empty())
+      ThrowImageError(decoded, "cannot read query " + decoded.error.substr(12));
     const cv::Mat& image = decoded.image;
     const QueryResult r = db.Query(image, options);
     if (const RankedKeyframe* best = r.best()) {
@@ -99,7 +101,9 @@ class QueryCommand : public Command {
     // Encoded here and written as every output is: a regular file replaced
     // whole, a symlink, device or FIFO streamed, never replaced.
     std::vector<uint8_t> png;
-    if (!cv::imencode(".png", picture, png)) PLACEDB_THROW_RUNTIME("cannot encode --draw ", draw_);
+    // PNG encoding of a picture we drew cannot fail but by a bug.
+    if (!cv::imencode(".png", picture, png))
+      PLACEDB_THROW_INTERNAL("cannot encode the picture ", draw_);
     WriteFileAtomic(draw_, std::string(reinterpret_cast<const char*>(png.data()), png.size()));
     fmt::print("draw          {}\n", draw_);
   }

@@ -28,7 +28,7 @@ class RemoveCommand : public Command {
     for (const int32_t id : ids_) {
       if (!db.FindKeyframe(id) && !ignore_missing_) {
         PLACEDB_THROW_INVALID("keyframe ", id, " is not in ", db_.dir,
-                              " (--ignore-missing to skip such ids)");
+                              " (`ignore_missing` to skip such ids)");
       }
     }
     size_t removed = 0;

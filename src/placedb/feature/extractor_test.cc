@@ -7,6 +7,8 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "placedb/util/error.h"
+
 namespace placedb {
 namespace {
 
@@ -117,7 +119,7 @@ TEST(ExtractorTest, OptionRanges) {
 TEST(ExtractorTest, InvalidOptionsThrow) {
   ExtractorOptions options;
   options.orb.scale_factor = 1.0;
-  EXPECT_THROW(FeatureExtractor::Create(options), std::invalid_argument);
+  EXPECT_THROW(FeatureExtractor::Create(options), InvalidArgument);
 }
 
 }  // namespace

@@ -14,7 +14,7 @@ enum class FeatureType : uint32_t { kOrb = 1, kSurf = 2 };
 
 // "orb" / "surf".
 const char* FeatureTypeName(FeatureType type);
-// Parses "orb" or "surf" (case-insensitive); throws std::invalid_argument.
+// Parses "orb" or "surf" (case-insensitive); throws InvalidArgument.
 FeatureType ParseFeatureType(const std::string& name);
 
 // Keypoints and their descriptors (one row each) from one image.
@@ -28,7 +28,7 @@ struct FeatureSet {
   bool empty() const { return keypoints.empty(); }
 };
 
-// Throws std::invalid_argument unless `a` and `b` can be compared: same type,
+// Throws InvalidArgument unless `a` and `b` can be compared: same type,
 // same descriptor width and element type. `what` names the context.
 void CheckCompatibleDescriptors(FeatureType a_type, const cv::Mat& a, FeatureType b_type,
                                 const cv::Mat& b, const std::string& what);

@@ -19,8 +19,10 @@ const char* ChromaChannelName(ChromaChannel channel) {
 }
 
 std::array<cv::Mat, 3> RgChromaticity(const cv::Mat& bgr) {
-  PLACEDB_CHECK(bgr.type() == CV_8UC3, "RgChromaticity needs an 8-bit BGR image, got type ",
-                bgr.type());
+  if (bgr.type() != CV_8UC3) {
+    PLACEDB_THROW_INVALID("rg-chromaticity needs an 8-bit BGR image (got ",
+                          cv::typeToString(bgr.type()), ")");
+  }
   std::array<cv::Mat, 3> planes;
   for (auto& p : planes) p.create(bgr.size(), CV_32F);
   for (int y = 0; y < bgr.rows; ++y) {
@@ -45,8 +47,9 @@ std::array<cv::Mat, 3> RgChromaticity(const cv::Mat& bgr) {
 }
 
 cv::Mat ToGray(const cv::Mat& image) {
-  PLACEDB_CHECK(image.empty() || image.depth() == CV_8U, "expected an 8-bit image, got depth ",
-                image.depth());
+  if (!image.empty() && image.depth() != CV_8U) {
+    PLACEDB_THROW_INVALID("an 8-bit image is needed (got ", cv::typeToString(image.type()), ")");
+  }
   if (image.empty() || image.channels() == 1) return image;
   cv::Mat gray;
   if (image.channels() == 3) {

@@ -12,11 +12,11 @@ const char* ChromaChannelName(ChromaChannel channel);
 
 // Splits a BGR CV_8UC3 image into three CV_32F planes r, g, b with
 // r = R / (R + G + B), etc. A black pixel (R + G + B = 0) has r = g = b = 1/3.
-// Throws std::invalid_argument for any other image type.
+// Throws InvalidArgument for any other image type.
 std::array<cv::Mat, 3> RgChromaticity(const cv::Mat& bgr);
 
 // Converts an 8-bit image with 1, 3 (BGR) or 4 (BGRA) channels to gray; a
-// gray image is returned as is (no copy). Throws std::invalid_argument for
+// gray image is returned as is (no copy). Throws InvalidArgument for
 // other depths or channel counts.
 cv::Mat ToGray(const cv::Mat& image);
 

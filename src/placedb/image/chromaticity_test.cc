@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include "placedb/util/error.h"
+
 namespace placedb {
 namespace {
 
@@ -22,7 +24,7 @@ TEST(ChromaticityTest, KnownPixels) {
 }
 
 TEST(ChromaticityTest, RejectsGray) {
-  EXPECT_THROW(RgChromaticity(cv::Mat(4, 4, CV_8UC1, cv::Scalar(3))), std::invalid_argument);
+  EXPECT_THROW(RgChromaticity(cv::Mat(4, 4, CV_8UC1, cv::Scalar(3))), InvalidArgument);
 }
 
 }  // namespace

@@ -48,7 +48,10 @@ float PlanePercentile(const cv::Mat& plane, double percentile) {
 }  // namespace
 
 cv::Rect LargestConcentrationRoi(const cv::Mat& plane, const CropOptions& options) {
-  PLACEDB_CHECK(plane.type() == CV_32F, "chromaticity plane must be CV_32F");
+  if (plane.type() != CV_32F) {
+    PLACEDB_THROW_INVALID("a chromaticity plane must be CV_32FC1 (got ",
+                          cv::typeToString(plane.type()), ")");
+  }
   if (plane.empty()) return {};
   cv::Mat smooth;
   if (options.smooth_sigma > 0) {
@@ -83,7 +86,7 @@ cv::Rect LargestConcentrationRoi(const cv::Mat& plane, const CropOptions& option
 
 CropResult SelectFeatureRichCrop(const cv::Mat& image, const CropOptions& options) {
   PLACEDB_CHECK_OPTIONS(options);
-  PLACEDB_CHECK(!image.empty(), "cannot crop an empty image");
+  if (image.empty()) PLACEDB_THROW_INVALID("cannot crop an empty image");
   CropResult result;
   result.roi = cv::Rect(0, 0, image.cols, image.rows);
   if (image.channels() != 3 || image.depth() != CV_8U) {

@@ -4,6 +4,8 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "placedb/util/error.h"
+
 namespace placedb {
 namespace {
 
@@ -129,7 +131,7 @@ TEST(FeatureRichCropTest, GrayscaleInputKeepsWholeImage) {
 TEST(FeatureRichCropTest, InvalidOptionsThrow) {
   CropOptions options;
   options.percentile = 100;
-  EXPECT_THROW(SelectFeatureRichCrop(cv::Mat(10, 10, CV_8UC3), options), std::invalid_argument);
+  EXPECT_THROW(SelectFeatureRichCrop(cv::Mat(10, 10, CV_8UC3), options), InvalidArgument);
 }
 
 }  // namespace

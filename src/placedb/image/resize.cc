@@ -13,7 +13,9 @@ bool IsValidAreaDivisor(int area_divisor) {
 }
 
 double SideScaleForAreaDivisor(int area_divisor) {
-  PLACEDB_CHECK(IsValidAreaDivisor(area_divisor), "resize must be 1, 4 or 16, got ", area_divisor);
+  if (!IsValidAreaDivisor(area_divisor)) {
+    PLACEDB_THROW_INVALID("`resize` must be 1, 4 or 16 (got ", area_divisor, ")");
+  }
   return 1.0 / std::sqrt(static_cast<double>(area_divisor));
 }
 

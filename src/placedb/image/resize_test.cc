@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include "placedb/util/error.h"
+
 namespace placedb {
 namespace {
 
@@ -21,7 +23,7 @@ TEST(ResizeTest, TinyImagesStayAtLeastOnePixel) {
 }
 
 TEST(ResizeTest, RejectsOtherFactors) {
-  EXPECT_THROW(ResizeByArea(cv::Mat(4, 4, CV_8UC1), 2), std::invalid_argument);
+  EXPECT_THROW(ResizeByArea(cv::Mat(4, 4, CV_8UC1), 2), InvalidArgument);
   EXPECT_FALSE(IsValidAreaDivisor(9));
 }
 

@@ -35,8 +35,11 @@ VerifyResult VerifyMatches(const std::vector<cv::Point2f>& query_points,
                            const std::vector<cv::Point2f>& keyframe_points,
                            const VerifyOptions& options) {
   PLACEDB_CHECK_OPTIONS(options);
-  PLACEDB_CHECK(query_points.size() == keyframe_points.size(), "point lists differ in size (",
-                query_points.size(), " vs ", keyframe_points.size(), ")");
+  if (query_points.size() != keyframe_points.size()) {
+    PLACEDB_THROW_INVALID("verification needs one keyframe point per query point (",
+                          query_points.size(), " query points, ", keyframe_points.size(),
+                          " keyframe points)");
+  }
   for (size_t i = 0; i < query_points.size(); ++i) {
     const cv::Point2f& a = query_points[i];
     const cv::Point2f& b = keyframe_points[i];

@@ -14,7 +14,7 @@ namespace placedb {
 enum class GeometricModel { kFundamental, kHomography };
 // "fundamental" / "homography".
 const char* GeometricModelName(GeometricModel model);
-// Parses those names; throws std::invalid_argument.
+// Parses those names; throws InvalidArgument.
 GeometricModel ParseGeometricModel(const std::string& name);
 
 struct VerifyOptions {
@@ -56,7 +56,7 @@ struct VerifyResult {
 // coordinates). When no fundamental matrix can be estimated (the camera did
 // not move or only rotated, which makes it degenerate), a homography is
 // tried instead. Sizes must agree; non-finite points are invalid input
-// (std::invalid_argument). Fewer than MinimumMatches pairs: 0 inliers.
+// (InvalidArgument). Fewer than MinimumMatches pairs: 0 inliers.
 // Deterministic for a given seed. Thread-safe.
 VerifyResult VerifyMatches(const std::vector<cv::Point2f>& query_points,
                            const std::vector<cv::Point2f>& keyframe_points,

@@ -270,26 +270,26 @@ TEST(GeometricVerificationTest, InvalidInputThrows) {
   Pairs pairs = HomographyPairs(20, 1.0, 6);
   std::vector<cv::Point2f> shorter = pairs.keyframe;
   shorter.pop_back();
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
       [&] { VerifyMatches(pairs.query, shorter, VerifyOptions()); },
-      {"differ in size", "20", "19"}));
+      {"one keyframe point per query point", "20 query points", "19 keyframe points"}));
   std::vector<cv::Point2f> nan = pairs.query;
   nan[7].y = std::numeric_limits<float>::quiet_NaN();
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
-      [&] { VerifyMatches(nan, pairs.keyframe, VerifyOptions()); },
-      {"point pair 7", "not finite"}));
+  EXPECT_TRUE(
+      ThrowsWith<InvalidArgument>([&] { VerifyMatches(nan, pairs.keyframe, VerifyOptions()); },
+                                  {"point pair 7", "not finite"}));
   std::vector<cv::Point2f> inf = pairs.keyframe;
   inf[3].x = std::numeric_limits<float>::infinity();
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
       [&] { VerifyMatches(pairs.query, inf, WithModel(GeometricModel::kHomography)); },
       {"point pair 3", "not finite"}));
   // Checked even when there are too few pairs to estimate anything.
   const std::vector<cv::Point2f> one_nan = {cv::Point2f(std::nanf(""), 0)};
-  EXPECT_THROW(VerifyMatches(one_nan, {cv::Point2f(0, 0)}, VerifyOptions()), std::invalid_argument);
+  EXPECT_THROW(VerifyMatches(one_nan, {cv::Point2f(0, 0)}, VerifyOptions()), InvalidArgument);
   VerifyOptions bad;
   bad.max_error_px = 0;
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
-      [&] { VerifyMatches(pairs.query, pairs.keyframe, bad); }, {"max_error_px"}));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { VerifyMatches(pairs.query, pairs.keyframe, bad); },
+                                          {"max_error_px"}));
 }
 
 // Degenerate input (all points identical; all points on one line) does not
@@ -361,9 +361,9 @@ TEST(GeometricVerificationTest, OptionsCheckRangesAndModelNames) {
   for (const GeometricModel model : {GeometricModel::kFundamental, GeometricModel::kHomography}) {
     EXPECT_EQ(ParseGeometricModel(GeometricModelName(model)), model);
   }
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([] { ParseGeometricModel("affine"); },
-                                                {"unknown geometric model 'affine'"}));
-  EXPECT_THROW(ParseGeometricModel(""), std::invalid_argument);
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([] { ParseGeometricModel("affine"); },
+                                          {"unknown geometric model 'affine'"}));
+  EXPECT_THROW(ParseGeometricModel(""), InvalidArgument);
 }
 
 FeatureSet Orb(const std::string& path) {

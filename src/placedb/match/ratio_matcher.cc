@@ -24,11 +24,14 @@ DescriptorBlock MakeDescriptorBlock(const FeatureSet& set, std::vector<int8_t>* 
   block.type = set.type;
   block.rows = set.descriptors.rows;
   block.row_bytes = static_cast<int>(set.descriptors.cols * set.descriptors.elemSize());
-  PLACEDB_CHECK(set.descriptors.empty() || set.descriptors.isContinuous(),
-                "descriptors must be stored contiguously");
-  PLACEDB_CHECK(set.descriptors.rows == static_cast<int>(set.keypoints.size()),
-                "one descriptor per keypoint expected (", set.keypoints.size(), " keypoints, ",
-                set.descriptors.rows, " descriptor rows)");
+  // Feature sets come from callers (features given from outside).
+  if (!set.descriptors.empty() && !set.descriptors.isContinuous()) {
+    PLACEDB_THROW_INVALID("the descriptors must be one contiguous matrix");
+  }
+  if (set.descriptors.rows != static_cast<int>(set.keypoints.size())) {
+    PLACEDB_THROW_INVALID("one descriptor per keypoint expected (", set.keypoints.size(),
+                          " keypoints, ", set.descriptors.rows, " descriptor rows)");
+  }
   block.data = set.descriptors.empty() ? nullptr : set.descriptors.ptr<uint8_t>();
   if (set.type == FeatureType::kSurf && laplacian != nullptr) {
     laplacian->resize(set.keypoints.size());
@@ -48,8 +51,10 @@ GroupedFeatures GroupByLaplacian(const FeatureSet& set) {
     if (set.type == FeatureType::kSurf) g.block.positive_rows = 0;
     return g;
   }
-  PLACEDB_CHECK(set.descriptors.rows == static_cast<int>(set.keypoints.size()),
-                "one descriptor per keypoint expected");
+  if (set.descriptors.rows != static_cast<int>(set.keypoints.size())) {
+    PLACEDB_THROW_INVALID("one descriptor per keypoint expected (", set.keypoints.size(),
+                          " keypoints, ", set.descriptors.rows, " descriptor rows)");
+  }
   std::vector<int> order(set.keypoints.size());
   for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
   const auto mid = std::stable_partition(order.begin(), order.end(),

@@ -83,7 +83,7 @@ struct MatchOptions {
 // Matches `query` against the descriptors `db` of one keyframe by the rules
 // above and returns the number of matches; appends them (queryIdx, trainIdx,
 // distance: Hamming bits or L2) to `matches` when given, in query order.
-// Throws std::invalid_argument when the blocks' types or widths differ.
+// Throws InvalidArgument when the blocks' types or widths differ.
 int MatchDescriptors(const DescriptorBlock& query, const DescriptorBlock& db,
                      const MatchOptions& options, std::vector<cv::DMatch>* matches = nullptr);
 
@@ -109,7 +109,7 @@ class GuidedMatcher {
   GuidedMatcher(const DescriptorBlock& query, const uint32_t* labels, size_t rows,
                 const MatchOptions& options);
   // The count against a keyframe's rows `db` with one label per row.
-  // std::invalid_argument for a label count other than db.rows, or
+  // InvalidArgument for a label count other than db.rows, or
   // descriptors of another type or width.
   int Count(const DescriptorBlock& db, const uint32_t* labels, size_t rows) const;
 

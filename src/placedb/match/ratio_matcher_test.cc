@@ -117,20 +117,20 @@ TEST(RatioMatcherTest, MixingFeatureTypesOrWidthsThrows) {
   surf.type = FeatureType::kSurf;
   surf.descriptors = cv::Mat(2, 64, CV_32F, cv::Scalar(0));
   surf.keypoints.resize(2);
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { Match(orb, surf, MatchOptions()); },
-                                                {"cannot match", "orb", "surf"}));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { Match(orb, surf, MatchOptions()); },
+                                          {"cannot match", "orb", "surf"}));
   FeatureSet wide = orb;
   wide.descriptors = cv::Mat(2, 64, CV_8U, cv::Scalar(0));
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { Match(orb, wide, MatchOptions()); },
-                                                {"widths differ", "32", "64"}));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { Match(orb, wide, MatchOptions()); },
+                                          {"widths differ", "32", "64"}));
 }
 
 // A view needs one descriptor row per keypoint.
 TEST(RatioMatcherTest, MakeDescriptorBlockRejectsKeypointCountMismatch) {
   FeatureSet set = RandomOrb(3, 1);
   set.keypoints.resize(2);
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { MakeDescriptorBlock(set, nullptr); },
-                                                {"2 keypoints", "3 descriptor rows"}));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { MakeDescriptorBlock(set, nullptr); },
+                                          {"2 keypoints", "3 descriptor rows"}));
   set.keypoints.resize(3);
   const DescriptorBlock block = MakeDescriptorBlock(set, nullptr);
   EXPECT_EQ(block.rows, 3);
@@ -416,15 +416,15 @@ TEST(RatioMatcherTest, GuidedMatchesCompareOnlyRowsOfOneLabel) {
   const DescriptorBlock other_block = MakeDescriptorBlock(other, nullptr);
   EXPECT_LE(guided.Count(other_block, labels.data(), labels.size()), 60);
   // Labels must cover the rows; types must agree.
-  EXPECT_TRUE(testing_util::ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(testing_util::ThrowsWith<InvalidArgument>(
       [&] { guided.Count(block, labels.data(), 59); }, "one label per keyframe row"));
-  EXPECT_TRUE(testing_util::ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(testing_util::ThrowsWith<InvalidArgument>(
       [&] { GuidedMatcher(block, labels.data(), 59, options); }, "one label per query row"));
   FeatureSet surf;
   surf.type = FeatureType::kSurf;
   surf.descriptors = cv::Mat(60, 64, CV_32F, cv::Scalar(0.1f));
   surf.keypoints.resize(60);
-  EXPECT_TRUE(testing_util::ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(testing_util::ThrowsWith<InvalidArgument>(
       [&] { guided.Count(MakeDescriptorBlock(surf, nullptr), labels.data(), 60); },
       "cannot match"));
 }

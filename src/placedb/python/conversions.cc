@@ -5,6 +5,8 @@
 #include <cstring>
 #include <vector>
 
+#include "placedb/util/check.h"
+
 namespace placedb {
 namespace python {
 namespace {
@@ -25,7 +27,7 @@ bool IsDtype(const py::array& a, char kind, py::ssize_t itemsize) {
 
 int CheckedDim(const py::array& a, int axis, const std::string& what) {
   if (a.shape(axis) > INT_MAX) {
-    throw py::value_error(what + " is too large: shape " + ShapeString(a));
+    PLACEDB_THROW_INVALID(what + " is too large: shape " + ShapeString(a));
   }
   return static_cast<int>(a.shape(axis));
 }
@@ -33,7 +35,7 @@ int CheckedDim(const py::array& a, int axis, const std::string& what) {
 // A keypoint's octave or class_id: a whole number that fits an int.
 int WholeNumber(float v, size_t row, const char* what) {
   if (!std::isfinite(v) || v != std::floor(v) || v < -2147483648.0f || v >= 2147483648.0f) {
-    throw py::value_error("keypoint " + std::to_string(row) + ": " + what +
+    PLACEDB_THROW_INVALID("keypoint " + std::to_string(row) + ": " + what +
                           " must be a whole number (got " + std::to_string(v) + ")");
   }
   return static_cast<int>(v);
@@ -52,7 +54,7 @@ std::vector<double> Numbers(py::handle seq, size_t n, const std::string& what) {
         PySequence_GetItem(seq.ptr(), static_cast<py::ssize_t>(i)));
     if (!item) throw py::error_already_set();
     v.push_back(ToDouble(item, what));
-    if (!std::isfinite(v.back())) throw py::value_error(what + " must be finite");
+    if (!std::isfinite(v.back())) PLACEDB_THROW_INVALID(what + " must be finite");
   }
   return v;
 }
@@ -74,7 +76,7 @@ std::string ShapeString(const py::array& a) {
 ImageInput ToImage(py::handle image) {
   const py::array a = AsArray(image, "image");
   if (!IsDtype(a, 'u', 1)) {
-    throw py::value_error("image must be a uint8 array (8-bit gray, BGR or BGRA), got dtype " +
+    PLACEDB_THROW_INVALID("image must be a uint8 array (8-bit gray, BGR or BGRA), got dtype " +
                           DtypeName(a));
   }
   int channels = 0;
@@ -83,7 +85,7 @@ ImageInput ToImage(py::handle image) {
   } else if (a.ndim() == 3 && (a.shape(2) == 1 || a.shape(2) == 3 || a.shape(2) == 4)) {
     channels = static_cast<int>(a.shape(2));
   } else {
-    throw py::value_error("image must be HxW (gray), HxWx3 (BGR) or HxWx4 (BGRA), got shape " +
+    PLACEDB_THROW_INVALID("image must be HxW (gray), HxWx3 (BGR) or HxWx4 (BGRA), got shape " +
                           ShapeString(a));
   }
   const int rows = CheckedDim(a, 0, "image");
@@ -99,7 +101,7 @@ FeatureInput ToFeatures(py::handle keypoints, py::handle descriptors) {
   FeatureInput in;
   const py::array d = AsArray(descriptors, "descriptors");
   if (d.ndim() != 2) {
-    throw py::value_error("descriptors must be an NxD array (one row per keypoint), got shape " +
+    PLACEDB_THROW_INVALID("descriptors must be an NxD array (one row per keypoint), got shape " +
                           ShapeString(d));
   }
   int depth = CV_8U;
@@ -115,7 +117,7 @@ FeatureInput ToFeatures(py::handle keypoints, py::handle descriptors) {
     depth = CV_32F;
     in.descriptors = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(d);
   } else {
-    throw py::value_error("descriptors must be uint8 (ORB) or float32 (SURF), got dtype " +
+    PLACEDB_THROW_INVALID("descriptors must be uint8 (ORB) or float32 (SURF), got dtype " +
                           DtypeName(d));
   }
   if (!in.descriptors) throw py::error_already_set();
@@ -126,14 +128,14 @@ FeatureInput ToFeatures(py::handle keypoints, py::handle descriptors) {
 
   const py::array k = AsArray(keypoints, "keypoints");
   if (k.ndim() != 2 || (k.shape(1) != 2 && k.shape(1) != 7)) {
-    throw py::value_error(
+    PLACEDB_THROW_INVALID(
         "keypoints must be an Nx2 (x, y) or Nx7 (x, y, size, angle, response, octave, "
         "class_id) array, got shape " +
         ShapeString(k));
   }
   const char kind = k.dtype().kind();
   if (kind != 'f' && kind != 'i' && kind != 'u') {
-    throw py::value_error("keypoints must be a real-valued array (float32 preferred), got dtype " +
+    PLACEDB_THROW_INVALID("keypoints must be a real-valued array (float32 preferred), got dtype " +
                           DtypeName(k));
   }
   const auto kf = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(k);
@@ -244,7 +246,7 @@ Pose MakePose(py::handle translation, py::handle quaternion_xyzw) {
   const Eigen::Quaterniond rotation(q[3], q[0], q[1], q[2]);  // (w, x, y, z)
   const double norm = rotation.norm();
   if (!(norm > 1e-12) || !std::isfinite(norm)) {
-    throw py::value_error("quaternion_xyzw must not be zero");
+    PLACEDB_THROW_INVALID("quaternion_xyzw must not be zero");
   }
   pose.rotation = rotation.normalized();
   return pose;
@@ -273,7 +275,7 @@ int ToInt(py::handle value, const std::string& name) {
   int overflow = 0;
   const long long v = PyLong_AsLongLongAndOverflow(index.ptr(), &overflow);
   if (overflow != 0 || v < INT_MIN || v > INT_MAX) {
-    throw py::value_error(name + " does not fit a 32-bit integer (got " +
+    PLACEDB_THROW_INVALID(name + " does not fit a 32-bit integer (got " +
                           py::str(index).cast<std::string>() + ")");
   }
   return static_cast<int>(v);
@@ -288,7 +290,7 @@ uint64_t ToUint64(py::handle value, const std::string& name) {
   const unsigned long long v = PyLong_AsUnsignedLongLong(index.ptr());
   if (PyErr_Occurred()) {
     PyErr_Clear();
-    throw py::value_error(name + " must be in [0, 2^64) (got " +
+    PLACEDB_THROW_INVALID(name + " must be in [0, 2^64) (got " +
                           py::str(index).cast<std::string>() + ")");
   }
   return static_cast<uint64_t>(v);

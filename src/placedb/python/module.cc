@@ -31,6 +31,8 @@
 #include "placedb/query/query.h"
 #include "placedb/python/conversions.h"
 #include "placedb/python/options.h"
+#include "placedb/util/check.h"
+#include "placedb/util/error.h"
 #include "placedb/util/version.h"
 
 namespace placedb {
@@ -42,7 +44,7 @@ using OptionalPath = std::optional<fs::path>;
 using OptionalSize = std::optional<std::pair<int, int>>;
 
 void ThrowIfInvalid(const std::string& reason, const char* what) {
-  if (!reason.empty()) throw std::invalid_argument(std::string("invalid ") + what + ": " + reason);
+  if (!reason.empty()) PLACEDB_THROW_INVALID("invalid ", what, ": ", reason);
 }
 
 // ---- frame sources: an image folder or list, or a TUM RGB-D folder --------
@@ -61,8 +63,8 @@ struct Source {
 Source MakeSource(const OptionalPath& images, const OptionalPath& tum, int first, int last,
                   const OptionalSize& frame_size, double max_time_diff,
                   const std::string& tum_rgb_list, const std::string& tum_groundtruth) {
-  if (images && tum) throw std::invalid_argument("give images= or tum=, not both");
-  if (!images && !tum) throw std::invalid_argument("give images= (a folder or list) or tum=");
+  if (images && tum) PLACEDB_THROW_INVALID("give images= or tum=, not both");
+  if (!images && !tum) PLACEDB_THROW_INVALID("give images= (a folder or list) or tum=");
   Source s;
   if (images) s.images = images->string();
   if (tum) s.tum = tum->string();
@@ -71,8 +73,8 @@ Source MakeSource(const OptionalPath& images, const OptionalPath& tum, int first
   if (frame_size) {
     const auto [w, h] = *frame_size;
     if (w < 16 || h < 16 || w > 16384 || h > 16384) {
-      throw std::invalid_argument(
-          fmt::format("frame_size: each side must be in [16, 16384] (got ({}, {}))", w, h));
+      PLACEDB_THROW_INVALID("`frame_size`: each side must be in [16, 16384] (got (", w, ", ", h,
+                            "))");
     }
     s.frame_size = frame_size;
   }
@@ -94,6 +96,76 @@ std::vector<Frame> ReadFrames(const Source& s) {
     ResizeFramesTo(&frames, cv::Size(s.frame_size->first, s.frame_size->second));
   }
   return frames;
+}
+
+// ---- errors ----------------------------------------------------------------
+// placedb.Error and one subclass per ErrorKind, each also a built-in
+// exception, so code that catches ValueError or FileNotFoundError keeps
+// working. Module-level classes live as long as the interpreter: the
+// references made here are never released.
+struct ErrorClasses {
+  PyObject* base = nullptr;
+  PyObject* by_kind[5] = {};
+};
+
+ErrorClasses& Errors() {
+  static ErrorClasses classes;
+  return classes;
+}
+
+PyObject* NewErrorClass(py::module_& m, const char* name, PyObject* builtin, const char* doc) {
+  const std::string qualified = std::string("placedb.") + name;
+  PyObject* bases = PyTuple_Pack(2, Errors().base, builtin);
+  if (bases == nullptr) throw py::error_already_set();
+  PyObject* cls = PyErr_NewExceptionWithDoc(qualified.c_str(), doc, bases, nullptr);
+  Py_DECREF(bases);
+  if (cls == nullptr) throw py::error_already_set();
+  m.attr(name) = py::reinterpret_borrow<py::object>(cls);
+  return cls;
+}
+
+void RegisterErrors(py::module_& m) {
+  ErrorClasses& e = Errors();
+  e.base = PyErr_NewExceptionWithDoc("placedb.Error", "Every error the placedb library raises.",
+                                     PyExc_Exception, nullptr);
+  if (e.base == nullptr) throw py::error_already_set();
+  m.attr("Error") = py::reinterpret_borrow<py::object>(e.base);
+  e.by_kind[static_cast<int>(ErrorKind::kInvalidArgument)] =
+      NewErrorClass(m, "InvalidArgumentError", PyExc_ValueError, "A bad argument or option value.");
+  e.by_kind[static_cast<int>(ErrorKind::kNotFound)] =
+      NewErrorClass(m, "NotFoundError", PyExc_FileNotFoundError,
+                    "A file or folder that does not exist: a database, an image, a list.");
+  e.by_kind[static_cast<int>(ErrorKind::kCorruptDatabase)] = NewErrorClass(
+      m, "CorruptDatabaseError", PyExc_ValueError,
+      "A database, index or vocabulary file that is damaged, of another version or not "
+      "placedb's.");
+  e.by_kind[static_cast<int>(ErrorKind::kIo)] =
+      NewErrorClass(m, "IoError", PyExc_OSError,
+                    "The system failed a read or a write (permissions, a full disk).");
+  e.by_kind[static_cast<int>(ErrorKind::kInternal)] =
+      NewErrorClass(m, "InternalError", PyExc_RuntimeError, "A bug in placedb: please report it.");
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const Error& error) {
+      PyObject* cls = Errors().by_kind[static_cast<int>(error.kind())];
+      if (cls == nullptr) cls = Errors().base;
+      // what(): the message with option names as keywords (an InternalError's
+      // also says it is a bug, and where). Messages quote paths, which are
+      // bytes: any that are not UTF-8 are kept as \xNN.
+      const std::string what = error.what();
+      PyObject* text = PyUnicode_DecodeUTF8(what.data(), static_cast<Py_ssize_t>(what.size()),
+                                            "backslashreplace");
+      PyObject* exc = text != nullptr ? PyObject_CallOneArg(cls, text) : nullptr;
+      Py_XDECREF(text);
+      if (exc == nullptr) return;  // the Python error of the failed call stands
+      PyObject* where = PyUnicode_FromString(error.where().c_str());
+      if (where == nullptr || PyObject_SetAttrString(exc, "where", where) != 0) PyErr_Clear();
+      Py_XDECREF(where);
+      PyErr_SetObject(cls, exc);
+      Py_DECREF(exc);
+    }
+  });
 }
 
 std::string Describe(const Source& s) {
@@ -154,8 +226,7 @@ std::unique_ptr<PlaceDatabase> OpenDatabase(const fs::path& dir, int threads,
   OpenOptions o;
   o.threads = threads;
   if (expected_features) o.expected_features = ParseFeatureType(*expected_features);
-  if (partition && keyframes)
-    throw std::invalid_argument("give partition= or keyframes=, not both");
+  if (partition && keyframes) PLACEDB_THROW_INVALID("give partition= or keyframes=, not both");
   if (partition) {
     o.subset = KeyframeSubset::Partition(partition->first, partition->second,
                                          ParsePartitionScheme(partition_scheme));
@@ -322,7 +393,7 @@ py::dict EvaluateDatabase(const PlaceDatabase& db, const OptionalPath& images,
   const Source source = MakeSource(images, tum, first, last, frame_size, max_time_diff,
                                    tum_rgb_list, tum_groundtruth);
   if (!truth_csv && !source.images.empty()) {
-    throw std::invalid_argument(
+    PLACEDB_THROW_INVALID(
         "evaluate with images= needs truth_csv= (a CSV of true matches), or use tum= with poses");
   }
   const std::string truth_path = truth_csv ? truth_csv->string() : "";
@@ -347,7 +418,7 @@ py::array ReadImage(const fs::path& path, int64_t max_image_pixels) {
     py::gil_scoped_release release;
     image = LoadFrameImage(frame);
   }
-  if (image.empty()) throw std::invalid_argument("cannot read image " + frame.image_path);
+  if (image.empty()) ThrowUnreadableFrame(frame);
   return FromImage(image);
 }
 
@@ -355,8 +426,8 @@ void SetLogLevel(const std::string& level) {
   static const std::vector<std::string> names = {"trace", "debug",    "info", "warn",
                                                  "error", "critical", "off"};
   if (std::find(names.begin(), names.end(), level) == names.end()) {
-    throw std::invalid_argument("unknown log level '" + level +
-                                "' (expected trace, debug, info, warn, error, critical or off)");
+    PLACEDB_THROW_INVALID("unknown log level '", level,
+                          "' (expected trace, debug, info, warn, error, critical or off)");
   }
   spdlog::set_level(spdlog::level::from_str(level));
 }
@@ -393,10 +464,16 @@ the Laplacian, used by matching, so pass Nx7 or laplacian_sign=False).
 Descriptors are NxD: uint8 with D = 32 for ORB, float32 with D = 64 or 128
 for SURF (float64 is converted). extract() returns exactly this layout.
 
-Errors: bad arguments raise ValueError (the library's std::invalid_argument,
-with its message), a missing or damaged database RuntimeError
-(std::runtime_error), a value of the wrong Python type or an unknown keyword
-TypeError, an unknown keyframe id KeyError.
+Errors are placedb.Error, one subclass per kind, each also the built-in
+exception Python code already catches for it:
+  InvalidArgumentError (a ValueError)    a bad argument or option value
+  NotFoundError (a FileNotFoundError)    no database, image or list there
+  CorruptDatabaseError (a ValueError)    a damaged or foreign database file
+  IoError (an OSError)                   the system failed a read or write
+  InternalError (a RuntimeError)         a bug in placedb: please report it
+Each has the library's message (options named by their keywords) and
+`where`, the source line that raised it. A value of the wrong Python type or
+an unknown keyword is TypeError, an unknown keyframe id KeyError.
 
 The library logs (spdlog) to the process's stderr; see set_log_level().
 )doc";
@@ -461,6 +538,7 @@ PYBIND11_MODULE(placedb, m) {
 
   m.doc() = kModuleDoc;
   m.attr("__version__") = kPlacedbVersion;
+  RegisterErrors(m);
 
   // The library logs through spdlog's default logger: to stderr, as the CLI.
   std::shared_ptr<spdlog::logger> logger = spdlog::get("placedb");

@@ -1,10 +1,10 @@
 #include "placedb/python/options.h"
 
-#include <stdexcept>
 #include <type_traits>
 #include <utility>
 
 #include "placedb/python/conversions.h"
+#include "placedb/util/check.h"
 
 namespace placedb {
 namespace python {
@@ -96,7 +96,7 @@ O Apply(const std::vector<OptionSpec<O>>& specs, const py::kwargs& kwargs, O opt
     spec->set(options, item.second, name);
   }
   const std::string reason = options.Check();
-  if (!reason.empty()) throw std::invalid_argument(std::string("invalid ") + what + ": " + reason);
+  if (!reason.empty()) PLACEDB_THROW_INVALID("invalid ", what, ": ", reason);
   return options;
 }
 

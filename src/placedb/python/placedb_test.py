@@ -328,7 +328,7 @@ class PlaceDbTest(unittest.TestCase):
                     self.db.query(im, **kwargs)
 
     def test_bad_open_and_build(self):
-        with self.assertRaises(RuntimeError):
+        with self.assertRaises(FileNotFoundError):
             placedb.PlaceDatabase(os.path.join(self.tmp, "missing.db"))
         with self.assertRaises(ValueError):
             placedb.PlaceDatabase(self.db_dir, expected_features="surf")
@@ -349,8 +349,58 @@ class PlaceDbTest(unittest.TestCase):
         with self.assertRaises(TypeError):
             placedb.build(out, images=IMAGES, no_such_setting=1)
         self.assertFalse(os.path.exists(out))
-        with self.assertRaises(ValueError):
+        with self.assertRaises(FileNotFoundError):
             placedb.read_image(os.path.join(self.tmp, "missing.png"))
+        not_an_image = os.path.join(self.tmp, "not_an_image.png")
+        with open(not_an_image, "w") as f:
+            f.write("text")
+        with self.assertRaises(ValueError):
+            placedb.read_image(not_an_image)
+
+    # ---- error classes ----------------------------------------------------
+    def test_error_classes(self):
+        # One class per kind, each also the built-in exception for it.
+        for cls, builtin in ((placedb.InvalidArgumentError, ValueError),
+                             (placedb.NotFoundError, FileNotFoundError),
+                             (placedb.CorruptDatabaseError, ValueError),
+                             (placedb.IoError, OSError),
+                             (placedb.InternalError, RuntimeError)):
+            with self.subTest(cls.__name__):
+                self.assertTrue(issubclass(cls, placedb.Error))
+                self.assertTrue(issubclass(cls, builtin))
+                self.assertEqual(cls.__module__, "placedb")
+        self.assertTrue(issubclass(placedb.Error, Exception))
+        self.assertFalse(issubclass(placedb.CorruptDatabaseError, placedb.InvalidArgumentError))
+
+    def test_error_kinds(self):
+        # A bad option: InvalidArgumentError naming the keyword; where() is
+        # kept apart from the message.
+        with self.assertRaises(placedb.InvalidArgumentError) as bad:
+            self.db.query(self.image5, top_k=0)
+        self.assertIn("top_k", str(bad.exception))
+        self.assertNotIn(".cc:", str(bad.exception))
+        self.assertRegex(bad.exception.where, r"^[a-z_]+/[a-z_]+\.(cc|h):[0-9]+$")
+        # No database there: NotFoundError.
+        missing = os.path.join(self.tmp, "missing.db")
+        with self.assertRaises(placedb.NotFoundError) as gone:
+            placedb.PlaceDatabase(missing)
+        self.assertIn(missing, str(gone.exception))
+        # A damaged manifest: CorruptDatabaseError (also a ValueError).
+        damaged = os.path.join(self.tmp, "damaged.db")
+        shutil.copytree(self.db_dir, damaged)
+        with open(os.path.join(damaged, "manifest.json"), "w") as f:
+            f.write("{ not json")
+        with self.assertRaises(placedb.CorruptDatabaseError) as corrupt:
+            placedb.PlaceDatabase(damaged)
+        self.assertIn("manifest.json", str(corrupt.exception))
+        with self.assertRaises(ValueError):
+            placedb.PlaceDatabase(damaged)
+        # A write the system refuses (/proc takes no new files, even from
+        # root): IoError, an OSError.
+        with self.assertRaises(placedb.IoError):
+            placedb.build("/proc/placedb_test.db", images=IMAGES, last=2)
+        with self.assertRaises(OSError):
+            placedb.build("/proc/placedb_test.db", images=IMAGES, last=2)
 
     # ---- other sources, settings ------------------------------------------
     def test_build_settings_and_tum(self):

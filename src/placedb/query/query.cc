@@ -575,7 +575,9 @@ QueryResult RunClusterSearch(const Database& db, const FeatureSet& query,
         "PlaceDatabase::Open)");
   }
   const ClusterSet& clusters = *context.clusters;
-  PLACEDB_CHECK(clusters.size() == 0 || db.size() > 0, "clusters of another database");
+  if (clusters.size() != 0 && db.size() == 0) {
+    PLACEDB_THROW_INVALID("the clusters belong to another database");
+  }
   int c = -1;
   if (options.prior.keyframe_id != 0) {
     const int index = db.IndexOfId(options.prior.keyframe_id);
@@ -631,7 +633,9 @@ QueryResult QueryDatabase(const Database& db, const FeatureSet& query, const Que
                           const QueryContext& context) {
   PLACEDB_CHECK_OPTIONS(options);
   ValidateQueryFeatures(query, db);
-  PLACEDB_CHECK(db.has_features(), "the database was opened as a keyframe table, without features");
+  if (!db.has_features()) {
+    PLACEDB_THROW_INVALID("the database was opened as a keyframe table, without features");
+  }
   const Timer own_clock;
   const Timer& clock = context.clock != nullptr ? *context.clock : own_clock;
   std::vector<uint32_t> among;
@@ -645,8 +649,10 @@ QueryResult QueryDatabase(const Database& db, const FeatureSet& query, const Que
     }
   }
   if (context.excluded != nullptr) {
-    PLACEDB_CHECK(context.excluded->size() == db.size(), "the excluded mask has ",
-                  context.excluded->size(), " entries for ", db.size(), " keyframes");
+    if (context.excluded->size() != db.size()) {
+      PLACEDB_THROW_INVALID("the mask of removed keyframes has ", context.excluded->size(),
+                            " entries for ", db.size(), " keyframes");
+    }
   }
   std::unique_ptr<Retriever> own_retriever;
   const Retriever* retriever = context.retriever;

@@ -130,13 +130,14 @@ struct QueryResult {
 };
 
 // JSON of a result (for the CLI, reports and the wire) and back. from_json
-// validates everything and throws std::invalid_argument naming the field.
+// validates everything and throws InvalidArgument naming the field (JSON from
+// the wire is a caller's input).
 void to_json(nlohmann::json& j, const QueryResult& r);
 void from_json(const nlohmann::json& j, QueryResult& r);
 void to_json(nlohmann::json& j, const RankedKeyframe& r);
 void from_json(const nlohmann::json& j, RankedKeyframe& r);
 
-// Throws std::invalid_argument unless `features` can be matched against `db`:
+// Throws InvalidArgument unless `features` can be matched against `db`:
 // one descriptor row per keypoint, the database's descriptor type and width,
 // contiguous rows, finite keypoints within the largest image (CheckKeypoints
 // with an unknown size), finite SURF descriptor values.
@@ -214,7 +215,7 @@ struct MatchDetail {
 // The match and verify stages of `options` on keyframe `index` of `db`
 // (verify when options.verify.enabled and at least min_matches matched): the
 // same matches and inliers a query would find for it. Throws
-// std::invalid_argument for features `db` cannot match or a bad index.
+// InvalidArgument for features `db` cannot match or a bad index.
 MatchDetail MatchKeyframe(const Database& db, const FeatureSet& query, size_t index,
                           const QueryOptions& options);
 
@@ -222,7 +223,7 @@ MatchDetail MatchKeyframe(const Database& db, const FeatureSet& query, size_t in
 // each computed with options.ForPartition(); the merge ranks and decides as
 // QueryDatabase on the whole database would (the same ranked list and
 // decision). Counts add up; stage times are the slowest part's (the parts
-// run in parallel). Throws std::invalid_argument when a keyframe appears in
+// run in parallel). Throws InvalidArgument when a keyframe appears in
 // two parts or verified and unverified entries are mixed.
 QueryResult MergeQueryResults(const std::vector<QueryResult>& parts, const QueryOptions& options);
 

@@ -370,15 +370,14 @@ TEST(MergeQueryResultsTest, RejectsOverlapAndMixedVerification) {
   QueryResult a, b;
   a.ranked = {k};
   b.ranked = {k};
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
       [&] {
         MergeQueryResults({a, b}, QueryOptions());
       },
       "is in two partial results"));
   QueryOptions off;
   off.verify.enabled = false;
-  EXPECT_TRUE(
-      ThrowsWith<std::invalid_argument>([&] { MergeQueryResults({a}, off); }, "is verified"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { MergeQueryResults({a}, off); }, "is verified"));
   EXPECT_TRUE(MergeQueryResults({}, QueryOptions()).ranked.empty());
   EXPECT_FALSE(MergeQueryResults({}, QueryOptions()).matched);
 }
@@ -406,7 +405,7 @@ TEST_F(QueryTest, RestrictionExaminesOnlyTheGivenKeyframes) {
   EXPECT_TRUE(QueryDatabase(*db_, Features(42), options, context).ranked.empty());
   const std::vector<uint32_t> bad = {3, 40};
   context.among = &bad;
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
       [&] { QueryDatabase(*db_, Features(42), options, context); }, "out of range"));
 }
 
@@ -416,30 +415,30 @@ TEST_F(QueryTest, MalformedFeaturesAreRejected) {
   const FeatureSet good = Features(42);
   FeatureSet fewer_keypoints = good;
   fewer_keypoints.keypoints.pop_back();
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
       [&] { QueryDatabase(*db_, fewer_keypoints, QueryOptions()); }, "descriptor rows"));
   FeatureSet narrow = good;
   narrow.descriptors = good.descriptors.colRange(0, 16).clone();
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
-      [&] { QueryDatabase(*db_, narrow, QueryOptions()); }, "16 bytes per row"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { QueryDatabase(*db_, narrow, QueryOptions()); },
+                                          "16 bytes per row"));
   FeatureSet floats = good;
   good.descriptors.convertTo(floats.descriptors, CV_32F);
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
-      [&] { QueryDatabase(*db_, floats, QueryOptions()); }, "CV_8U"));
+  EXPECT_TRUE(
+      ThrowsWith<InvalidArgument>([&] { QueryDatabase(*db_, floats, QueryOptions()); }, "CV_8U"));
   FeatureSet strided = good;
   cv::Mat wide(good.descriptors.rows, 64, CV_8U, cv::Scalar(0));
   strided.descriptors = wide.colRange(0, 32);
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
-      [&] { QueryDatabase(*db_, strided, QueryOptions()); }, "contiguously"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { QueryDatabase(*db_, strided, QueryOptions()); },
+                                          "contiguously"));
   FeatureSet nan = good;
   nan.keypoints[5].pt.x = std::numeric_limits<float>::quiet_NaN();
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { QueryDatabase(*db_, nan, QueryOptions()); },
-                                                "non-finite"));
+  EXPECT_TRUE(
+      ThrowsWith<InvalidArgument>([&] { QueryDatabase(*db_, nan, QueryOptions()); }, "non-finite"));
   FeatureSet surf = good;
   surf.type = FeatureType::kSurf;
   EXPECT_TRUE(
-      ThrowsWith<std::invalid_argument>([&] { QueryDatabase(*db_, surf, QueryOptions()); },
-                                        "the query has surf features but the database holds orb"));
+      ThrowsWith<InvalidArgument>([&] { QueryDatabase(*db_, surf, QueryOptions()); },
+                                  "the query has surf features but the database holds orb"));
 }
 
 // Real SURF features against an ORB database.
@@ -452,7 +451,7 @@ TEST_F(QueryTest, SurfQueryAgainstOrbDatabaseThrows) {
   ThreadPool pool(2);
   QueryContext context;
   context.pool = &pool;
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
       [&] { QueryDatabase(*db_, features, QueryOptions(), context); }, "surf features"));
 }
 
@@ -553,7 +552,7 @@ TEST_F(QueryTest, ResultJsonRoundTripAndValidation) {
   auto fails = [&](const std::function<void(nlohmann::json&)>& edit, const std::string& part) {
     nlohmann::json bad = j;
     edit(bad);
-    return ThrowsWith<std::invalid_argument>([&] { bad.get<QueryResult>(); }, part);
+    return ThrowsWith<InvalidArgument>([&] { bad.get<QueryResult>(); }, part);
   };
   EXPECT_TRUE(fails([](nlohmann::json& b) { b.erase("ranked"); }, "ranked is missing"));
   EXPECT_TRUE(fails([](nlohmann::json& b) { b["matched"] = 1; }, "matched is not true or false"));
@@ -584,8 +583,8 @@ TEST(QueryOptionsTest, CheckRejectsBadValues) {
   options.top_k = 0;
   EXPECT_EQ(options.Check(), "top_k must be in [1, 10000] (got 0)");
   const Database empty(FeatureType::kOrb, 32);
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
-      [&] { QueryDatabase(empty, FeatureSet(), options); }, "top_k must be in [1, 10000]"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { QueryDatabase(empty, FeatureSet(), options); },
+                                          "top_k must be in [1, 10000]"));
   options = QueryOptions();
   options.min_matches = 0;
   EXPECT_NE(options.Check().find("min_matches"), std::string::npos);

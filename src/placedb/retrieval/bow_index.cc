@@ -73,14 +73,15 @@ double CommonTerm(double a, double b) {
 // at `direct_level`.
 BowVector MakeBowVector(const Vocabulary& vocabulary, int direct_level,
                         const DescriptorBlock& block, std::vector<uint32_t>* nodes) {
-  PLACEDB_CHECK(block.rows >= 0 && (block.rows == 0 || block.data != nullptr),
-                "a descriptor block without rows to read");
-  if (block.rows > 0) {
-    PLACEDB_CHECK(block.type == vocabulary.type() && block.row_bytes == vocabulary.row_bytes(),
-                  FeatureTypeName(block.type), " rows of ", block.row_bytes,
-                  " bytes cannot be looked up in a vocabulary of ",
-                  FeatureTypeName(vocabulary.type()), " rows of ", vocabulary.row_bytes(),
-                  " bytes");
+  if (block.rows < 0 || (block.rows > 0 && block.data == nullptr)) {
+    PLACEDB_THROW_INVALID("a descriptor block without rows to read");
+  }
+  if (block.rows > 0 &&
+      (block.type != vocabulary.type() || block.row_bytes != vocabulary.row_bytes())) {
+    PLACEDB_THROW_INVALID(FeatureTypeName(block.type), " rows of ", block.row_bytes,
+                          " bytes cannot be looked up in a vocabulary of ",
+                          FeatureTypeName(vocabulary.type()), " rows of ", vocabulary.row_bytes(),
+                          " bytes");
   }
   std::vector<uint32_t> words(block.rows);
   if (nodes != nullptr) nodes->assign(block.rows, 0);
@@ -141,8 +142,9 @@ class ScratchReset {
 }  // namespace
 
 double BowScore(const BowVector& a, const BowVector& b) {
-  PLACEDB_CHECK(a.words.size() == a.weights.size() && b.words.size() == b.weights.size(),
-                "a bag of words needs one weight per word");
+  if (a.words.size() != a.weights.size() || b.words.size() != b.weights.size()) {
+    PLACEDB_THROW_INVALID("a bag of words needs one weight per word");
+  }
   double score = 0.0;
   size_t i = 0, j = 0;
   while (i < a.words.size() && j < b.words.size()) {
@@ -165,16 +167,23 @@ BowIndex BowIndex::Build(std::shared_ptr<const Vocabulary> vocabulary, const Dat
                          const BowIndexOptions& options, ThreadPool* pool, ProgressBar* progress) {
   PLACEDB_CHECK(vocabulary != nullptr, "a bag-of-words index needs a vocabulary");
   PLACEDB_CHECK_OPTIONS(options);
-  PLACEDB_CHECK(options.direct_level <= vocabulary->depth(), "direct_level ", options.direct_level,
-                " is deeper than the vocabulary's depth ", vocabulary->depth());
-  PLACEDB_CHECK(db.has_features(), "the database was opened without features");
-  PLACEDB_CHECK(
-      db.feature_type() == vocabulary->type() && db.descriptor_bytes() == vocabulary->row_bytes(),
-      "the database holds ", FeatureTypeName(db.feature_type()), " descriptors of ",
-      db.descriptor_bytes(), " bytes, the vocabulary ", FeatureTypeName(vocabulary->type()),
-      " descriptors of ", vocabulary->row_bytes(), " bytes");
-  PLACEDB_CHECK(db.size() < UINT32_MAX, "too many keyframes for an index: ", db.size());
-  if (!HostIsLittleEndian()) PLACEDB_THROW_RUNTIME("placedb indexes need a little-endian host");
+  if (options.direct_level > vocabulary->depth()) {
+    PLACEDB_THROW_INVALID("`direct_level` ", options.direct_level,
+                          " is deeper than the vocabulary's depth ", vocabulary->depth());
+  }
+  if (!db.has_features()) {
+    PLACEDB_THROW_INVALID("a bag-of-words index needs a database opened with its features");
+  }
+  if (db.feature_type() != vocabulary->type() || db.descriptor_bytes() != vocabulary->row_bytes()) {
+    PLACEDB_THROW_INVALID("the database holds ", FeatureTypeName(db.feature_type()),
+                          " descriptors of ", db.descriptor_bytes(), " bytes, the vocabulary ",
+                          FeatureTypeName(vocabulary->type()), " descriptors of ",
+                          vocabulary->row_bytes(), " bytes");
+  }
+  if (db.size() >= UINT32_MAX) {
+    PLACEDB_THROW_INVALID("too many keyframes for a bag-of-words index: ", db.size());
+  }
+  if (!HostIsLittleEndian()) PLACEDB_THROW_IO("placedb indexes need a little-endian host");
 
   const size_t num_keyframes = db.size();
   std::vector<BowVector> vectors(num_keyframes);
@@ -259,8 +268,8 @@ BowIndex BowIndex::FromImage(flat_file::Image image, const std::string& shown,
   static_assert(std::is_standard_layout<Posting>::value && sizeof(Posting) == kPostingBytes,
                 "Posting is the 8-byte posting record");
   PLACEDB_CHECK(vocabulary != nullptr, "a bag-of-words index needs a vocabulary");
-  if (!HostIsLittleEndian()) PLACEDB_THROW_RUNTIME("placedb indexes need a little-endian host");
-  auto fail = [&](const auto&... what) { PLACEDB_THROW_RUNTIME(shown, ": ", what...); };
+  if (!HostIsLittleEndian()) PLACEDB_THROW_IO("placedb indexes need a little-endian host");
+  auto fail = [&](const auto&... what) { PLACEDB_THROW_CORRUPT(shown, ": ", what...); };
   // The payload's checksum runs below, beside the checks that read the
   // payload (all of them bounded by the header, which is checked here).
   flat_file::CheckSealedHeader(image, kBowIndexMagic, kBowIndexFormatVersion, "bag-of-words index",
@@ -431,7 +440,10 @@ BowVector BowIndex::Transform(const DescriptorBlock& query, std::vector<uint32_t
 }
 
 BowVector BowIndex::KeyframeVector(uint32_t index) const {
-  PLACEDB_CHECK(index < num_keyframes_, "keyframe index ", index, " of ", num_keyframes_);
+  if (index >= num_keyframes_) {
+    PLACEDB_THROW_INVALID("keyframe index ", index, " is out of range (the index holds ",
+                          num_keyframes_, ")");
+  }
   const uint64_t begin = vector_offsets_[index], end = vector_offsets_[index + 1];
   BowVector v;
   v.words.assign(vector_words_ + begin, vector_words_ + end);
@@ -440,7 +452,10 @@ BowVector BowIndex::KeyframeVector(uint32_t index) const {
 }
 
 Span<uint32_t> BowIndex::DirectNodes(uint32_t index) const {
-  PLACEDB_CHECK(index < num_keyframes_, "keyframe index ", index, " of ", num_keyframes_);
+  if (index >= num_keyframes_) {
+    PLACEDB_THROW_INVALID("keyframe index ", index, " is out of range (the index holds ",
+                          num_keyframes_, ")");
+  }
   const uint64_t begin = direct_offsets_[index];
   return Span<uint32_t>(direct_nodes_ + begin,
                         static_cast<size_t>(direct_offsets_[index + 1] - begin));
@@ -451,16 +466,19 @@ std::vector<BowIndex::Scored> BowIndex::Query(const BowVector& query, size_t max
                                               const Deadline& deadline, bool* stopped,
                                               const uint8_t* excluded) const {
   const size_t n = query.words.size();
-  PLACEDB_CHECK(query.weights.size() == n, "a bag of words needs one weight per word");
+  if (query.weights.size() != n) PLACEDB_THROW_INVALID("a bag of words needs one weight per word");
   const uint32_t num_words = vocabulary_->num_words();
   for (size_t i = 0; i < n; ++i) {
-    PLACEDB_CHECK(query.words[i] < num_words && (i == 0 || query.words[i - 1] < query.words[i]),
-                  "the query's words must be ascending and below ", num_words);
+    if (query.words[i] >= num_words || (i > 0 && query.words[i - 1] >= query.words[i])) {
+      PLACEDB_THROW_INVALID("the query's words must be ascending and below ", num_words);
+    }
   }
   if (among != nullptr) {
     for (size_t i = 0; i < among->size(); ++i) {
-      PLACEDB_CHECK((*among)[i] < num_keyframes_ && (i == 0 || (*among)[i - 1] < (*among)[i]),
-                    "among must hold sorted, unique keyframe indices below ", num_keyframes_);
+      if ((*among)[i] >= num_keyframes_ || (i > 0 && (*among)[i - 1] >= (*among)[i])) {
+        PLACEDB_THROW_INVALID("the keyframes to search must be sorted, unique indices below ",
+                              num_keyframes_);
+      }
     }
   }
   if (max_results == 0 || num_keyframes_ == 0) return {};

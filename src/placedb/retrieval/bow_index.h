@@ -100,7 +100,7 @@ class BowIndex {
   // indices ascending in each word's postings) and the direct index.
   // Parallel over keyframes on `pool` (nullptr: this thread); the result does
   // not depend on the number of threads. `progress` (may be nullptr) is
-  // advanced by one per keyframe. Throws std::invalid_argument for bad
+  // advanced by one per keyframe. Throws InvalidArgument for bad
   // options, a direct level deeper than the vocabulary, a database without
   // features, or descriptors of another type or width than the vocabulary's.
   static BowIndex Build(std::shared_ptr<const Vocabulary> vocabulary, const Database& db,
@@ -115,9 +115,9 @@ class BowIndex {
   // words ascending and < W with finite positive weights summing to 1; every
   // direct node a node of the direct level (or a leaf above it); every
   // posting's keyframe < K, ascending within its word, and the inverted file
-  // exactly the keyframe vectors transposed. Failures are std::runtime_error
-  // naming the file ("built with another vocabulary", "built with another
-  // database", or what is damaged).
+  // exactly the keyframe vectors transposed. Failures are CorruptDatabase
+  // naming the file (NotFound when there is no file) ("built with another vocabulary", "built with
+  // another database", or what is damaged).
   static BowIndex Open(const std::string& path, std::shared_ptr<const Vocabulary> vocabulary,
                        const Database& db);
   // The same on a file mapped by the caller; `shown` names it in errors.
@@ -135,7 +135,7 @@ class BowIndex {
   uint64_t file_bytes() const { return image_.size; }
 
   // The query's bag of words; with `nodes`, also each row's node at the
-  // direct level (one per row, in row order). Throws std::invalid_argument
+  // direct level (one per row, in row order). Throws InvalidArgument
   // when the block's type or width is not the vocabulary's.
   BowVector Transform(const DescriptorBlock& query, std::vector<uint32_t>* nodes = nullptr) const;
   // A copy of keyframe `index`'s stored vector (index < size()).
@@ -154,7 +154,7 @@ class BowIndex {
   // never returned. The scores equal BowScore(query, KeyframeVector(index))
   // exactly (the same terms, added in the same order). With `among` (sorted,
   // unique indices < size()), only those keyframes. Query words of weight <= 0
-  // score nothing. Throws std::invalid_argument for an unsorted query, a word
+  // score nothing. Throws InvalidArgument for an unsorted query, a word
   // beyond the vocabulary, or a bad `among`.
   //
   // Under `deadline`, once some keyframe has a score, a query word is

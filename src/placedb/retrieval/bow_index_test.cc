@@ -230,10 +230,10 @@ TEST(BowIndexOptions, CheckRejectsOutOfRange) {
   o.direct_level = 8;
   EXPECT_EQ(o.Check(), "");
   const World& w = Orb();
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
       [&] { BowIndex::Build(w.vocabulary, w.db, o, nullptr, nullptr); }, "deeper"));
   o.direct_level = -1;
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
       [&] { BowIndex::Build(w.vocabulary, w.db, o, nullptr, nullptr); }, "direct_level"));
 }
 
@@ -267,7 +267,7 @@ TEST(BowIndex, TransformGivesNormalisedSortedVectors) {
   surf.type = FeatureType::kSurf;
   surf.keypoints.resize(2);
   surf.descriptors = cv::Mat::zeros(2, 64, CV_32F);
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { w.Transform(surf); }, "cannot be looked up"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { w.Transform(surf); }, "cannot be looked up"));
 }
 
 TEST(BowIndex, DirectNodesHaveOneEntryPerFeatureRow) {
@@ -286,8 +286,8 @@ TEST(BowIndex, DirectNodesHaveOneEntryPerFeatureRow) {
     }
   }
   EXPECT_TRUE(index.DirectNodes(kKeyframes).empty());
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { index.DirectNodes(kKeyframes + 1); },
-                                                "keyframe index"));
+  EXPECT_TRUE(
+      ThrowsWith<InvalidArgument>([&] { index.DirectNodes(kKeyframes + 1); }, "keyframe index"));
 }
 
 TEST(BowIndex, QueryRanksTheKeyframeOfTheSameSetFirst) {
@@ -332,17 +332,17 @@ TEST(BowIndex, QueryEqualsBruteForceScores) {
   }
   EXPECT_TRUE(index.Query(queries[0], 0).empty());
   EXPECT_TRUE(index.Query(BowVector(), 10).empty());
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
       [&] {
         index.Query(BowVector{{5, 3}, {0.5f, 0.5f}}, 10);
       },
       "ascending"));
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
       [&] {
         index.Query(BowVector{{w.vocabulary->num_words()}, {1.0f}}, 10);
       },
       "below"));
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
       [&] {
         index.Query(BowVector{{1, 2}, {1.0f}}, 10);
       },
@@ -399,11 +399,10 @@ TEST(BowIndex, QueryAmongOnlyReturnsThose) {
   const std::vector<uint32_t> none;
   EXPECT_TRUE(index.Query(w.Query(0), 10, &none).empty());
   const std::vector<uint32_t> unsorted{4, 2};
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { index.Query(w.Query(0), 10, &unsorted); },
-                                                "sorted, unique"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { index.Query(w.Query(0), 10, &unsorted); },
+                                          "sorted, unique"));
   const std::vector<uint32_t> beyond{1, static_cast<uint32_t>(index.size())};
-  EXPECT_TRUE(
-      ThrowsWith<std::invalid_argument>([&] { index.Query(w.Query(0), 10, &beyond); }, "below"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { index.Query(w.Query(0), 10, &beyond); }, "below"));
 }
 
 TEST(BowIndex, QueryIsThreadSafe) {
@@ -495,28 +494,27 @@ TEST(BowIndex, OpenRejectsAnotherVocabularyOrDatabase) {
   w.index->Save(path);
   const auto other = std::make_shared<const Vocabulary>(
       Vocabulary::Train(Blocks(w.db), SmallVocabulary(2), nullptr, nullptr));
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { BowIndex::Open(path, other, w.db); },
-                                             {path, "built with another vocabulary"}));
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { BowIndex::Open(path, other, w.db); },
+                                          {path, "built with another vocabulary"}));
   const auto same = [](size_t, Keyframe*, FeatureSet*) {};
   const Database renumbered =
       CopyDatabase(w.db, [](size_t i, Keyframe* k, FeatureSet*) { k->id += i == 3 ? 1 : 0; });
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>(
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>(
       [&] { BowIndex::Open(path, w.vocabulary, renumbered); },
       {path, "built with another database", "keyframe 3 has id 109 in the index but 110"}));
   const Database shorter = CopyDatabase(w.db, same, [](size_t i) { return i != 0; });
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { BowIndex::Open(path, w.vocabulary, shorter); },
-                                             {path, "built with another database", "keyframes"}));
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { BowIndex::Open(path, w.vocabulary, shorter); },
+                                          {path, "built with another database", "keyframes"}));
   const Database fewer_rows = CopyDatabase(w.db, [](size_t i, Keyframe*, FeatureSet* f) {
     if (i != 5) return;
     f->keypoints.pop_back();
     f->descriptors = f->descriptors.rowRange(0, f->descriptors.rows - 1).clone();
   });
-  EXPECT_TRUE(
-      ThrowsWith<std::runtime_error>([&] { BowIndex::Open(path, w.vocabulary, fewer_rows); },
-                                     {path, "built with another database", "feature rows"}));
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { BowIndex::Open(path, w.vocabulary, fewer_rows); },
+                                          {path, "built with another database", "feature rows"}));
   // The same keyframes: opens.
   EXPECT_EQ(BowIndex::Open(path, w.vocabulary, CopyDatabase(w.db, same)).size(), w.db.size());
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>(
+  EXPECT_TRUE(ThrowsWith<NotFound>(
       [&] { BowIndex::Open(dir.Path("missing.bin"), w.vocabulary, w.db); }, "missing.bin"));
 }
 
@@ -543,8 +541,8 @@ class BowIndexFileTest : public ::testing::Test {
 
   ::testing::AssertionResult Rejects(const std::string& bytes, const std::string& what) {
     const std::string path = dir_.Write("damaged.bin", bytes);
-    return ThrowsWith<std::runtime_error>([&] { BowIndex::Open(path, Orb().vocabulary, Orb().db); },
-                                          {path, what});
+    return ThrowsWith<CorruptDatabase>([&] { BowIndex::Open(path, Orb().vocabulary, Orb().db); },
+                                       {path, what});
   }
   // `good_` with a value written at `offset`, or its header changed by
   // `edit`, resealed.
@@ -684,7 +682,7 @@ TEST(BowIndex, SurfIndex) {
     }
   }
   const World& orb = Orb();
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
       [&] { BowIndex::Build(w.vocabulary, orb.db, BowIndexOptions(), nullptr, nullptr); },
       "the database holds orb descriptors"));
 }

@@ -124,8 +124,9 @@ int ClusterSet::Nearest(const Eigen::Vector3d& position) const {
 }
 
 std::vector<int> ClusterSet::Around(int c, int hops) const {
-  PLACEDB_CHECK(c >= 0 && static_cast<size_t>(c) < members_.size(), "cluster ", c,
-                " is out of range");
+  if (c < 0 || static_cast<size_t>(c) >= members_.size()) {
+    PLACEDB_THROW_INVALID("cluster ", c, " is out of range (there are ", members_.size(), ")");
+  }
   std::vector<int> frontier{c}, all{c};
   std::vector<char> seen(members_.size(), 0);
   seen[c] = 1;

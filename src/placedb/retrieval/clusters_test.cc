@@ -116,8 +116,8 @@ TEST(ClusterSetTest, OptionsAreChecked) {
   r.cluster_hops = 65;
   EXPECT_FALSE(r.Check().empty());
   EXPECT_EQ(ParseRetrievalMethod("bow"), RetrievalMethod::kBow);
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([] { ParseRetrievalMethod("dbow"); },
-                                                "exhaustive, bow or cluster"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([] { ParseRetrievalMethod("dbow"); },
+                                          "exhaustive, bow or cluster"));
 }
 
 }  // namespace

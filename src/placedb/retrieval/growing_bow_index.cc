@@ -20,8 +20,10 @@ void SortAndCut(std::vector<BowIndex::Scored>* list, size_t max_results) {
 std::vector<BowIndex::Scored> GrowingBowIndex::ScoreEach(const BowVector& query, size_t max_results,
                                                          const std::vector<uint32_t>& among,
                                                          const uint8_t* excluded) const {
-  PLACEDB_CHECK(among.empty() || among.back() < size(), "keyframe index ", among.back(),
-                " is out of range");
+  if (!among.empty() && among.back() >= size()) {
+    PLACEDB_THROW_INVALID("keyframe index ", among.back(), " is out of range (the index holds ",
+                          size(), ")");
+  }
   const uint32_t base = static_cast<uint32_t>(base_.size());
   std::vector<BowIndex::Scored> out;
   for (const uint32_t index : among) {
@@ -44,7 +46,10 @@ void GrowingBowIndex::Append(BowVector words, std::vector<uint32_t> nodes) {
 Span<uint32_t> GrowingBowIndex::DirectNodes(uint32_t index) const {
   const uint32_t base = static_cast<uint32_t>(base_.size());
   if (index < base) return base_.DirectNodes(index);
-  PLACEDB_CHECK(index - base < added_nodes_.size(), "keyframe index ", index, " of ", size());
+  if (index - base >= added_nodes_.size()) {
+    PLACEDB_THROW_INVALID("keyframe index ", index, " is out of range (the index holds ", size(),
+                          ")");
+  }
   const std::vector<uint32_t>& nodes = added_nodes_[index - base];
   return Span<uint32_t>(nodes.data(), nodes.size());
 }
@@ -62,8 +67,10 @@ std::vector<BowIndex::Scored> GrowingBowIndex::Query(const BowVector& query, siz
   if (added_.empty()) return base_.Query(query, max_results, among, deadline, stopped, excluded);
   std::vector<uint32_t> base_among, added_among;
   if (among != nullptr) {
-    PLACEDB_CHECK(among->empty() || among->back() < size(), "keyframe index ", among->back(),
-                  " is out of range");
+    if (!among->empty() && among->back() >= size()) {
+      PLACEDB_THROW_INVALID("keyframe index ", among->back(), " is out of range (the index holds ",
+                            size(), ")");
+    }
     const auto split = std::lower_bound(among->begin(), among->end(), base);
     base_among.assign(among->begin(), split);
     added_among.assign(split, among->end());

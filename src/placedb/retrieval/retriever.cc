@@ -80,8 +80,10 @@ class BowRetriever : public Retriever {
   std::vector<Candidate> Retrieve(const Database& db, const FeatureSet& query,
                                   const std::vector<uint32_t>* among, const uint8_t* excluded,
                                   const Deadline& deadline, bool* stopped) const override {
-    PLACEDB_CHECK(index_.size() == db.size(), "the bag-of-words index has ", index_.size(),
-                  " keyframes but the database ", db.size());
+    if (index_.size() != db.size()) {
+      PLACEDB_THROW_INVALID("the bag-of-words index has ", index_.size(),
+                            " keyframes but the database ", db.size());
+    }
     std::vector<int8_t> laplacian;
     const DescriptorBlock block = MakeDescriptorBlock(query, &laplacian);
     const bool guided = guided_ > 0;
@@ -145,8 +147,8 @@ std::unique_ptr<Retriever> Retriever::Create(const RetrievalOptions& options,
     case RetrievalMethod::kBow:
       if (bow == nullptr) {
         PLACEDB_THROW_INVALID(
-            "bow search needs a bag-of-words index: rebuild the database with "
-            "`placedb build ... --index bow`");
+            "bow search needs a bag-of-words index: rebuild the database with `index` set to "
+            "bow");
       }
       return std::make_unique<BowRetriever>(*bow, options, match, RetrievalMethod::kBow);
     case RetrievalMethod::kCluster:

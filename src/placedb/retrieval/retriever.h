@@ -25,7 +25,7 @@ class GrowingBowIndex;
 enum class RetrievalMethod { kExhaustive, kBow, kCluster };
 // "exhaustive", "bow", "cluster".
 const char* RetrievalMethodName(RetrievalMethod method);
-// Parses a name; throws std::invalid_argument naming the known ones.
+// Parses a name; throws InvalidArgument naming the known ones.
 RetrievalMethod ParseRetrievalMethod(const std::string& name);
 
 struct RetrievalOptions {
@@ -78,7 +78,7 @@ class Retriever {
                                           bool* stopped) const = 0;
 
   // The retriever for `options` over `db`. bow needs `bow`, the database's
-  // index (std::invalid_argument naming the fix when it is nullptr). cluster
+  // index (InvalidArgument naming the fix when it is nullptr). cluster
   // retrieves through bow when `bow` is given, else exhaustively. `match`:
   // the rules guided matching counts by.
   static std::unique_ptr<Retriever> Create(const RetrievalOptions& options, const Database& db,

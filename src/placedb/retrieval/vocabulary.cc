@@ -262,26 +262,32 @@ class NodeClusterer {
   ThreadPool* pool_;
 };
 
-// The non-empty blocks' type and width, after checking that they agree.
+// The non-empty blocks' type and width, after checking that they agree (the
+// caller's blocks: InvalidArgument).
 void CheckBlocks(const std::vector<DescriptorBlock>& blocks, FeatureType* type, int* row_bytes) {
-  PLACEDB_CHECK(!blocks.empty(), "no descriptor blocks to train a vocabulary on");
+  if (blocks.empty()) PLACEDB_THROW_INVALID("no descriptor blocks to train a vocabulary on");
   int first = -1;
   for (size_t i = 0; i < blocks.size(); ++i) {
     const DescriptorBlock& b = blocks[i];
-    PLACEDB_CHECK(b.rows >= 0 && (b.rows == 0 || b.data != nullptr), "block ", i,
-                  " has no rows to read");
+    if (b.rows < 0 || (b.rows > 0 && b.data == nullptr)) {
+      PLACEDB_THROW_INVALID("descriptor block ", i, " has no rows to read");
+    }
     if (b.rows == 0) continue;
     if (first < 0) {
       first = static_cast<int>(i);
-      PLACEDB_CHECK(ValidWidth(b.type, b.row_bytes), FeatureTypeName(b.type),
-                    " descriptors cannot be ", b.row_bytes, " bytes wide");
+      if (!ValidWidth(b.type, b.row_bytes)) {
+        PLACEDB_THROW_INVALID(FeatureTypeName(b.type), " descriptors cannot be ", b.row_bytes,
+                              " bytes wide");
+      }
     }
     const DescriptorBlock& f = blocks[first];
-    PLACEDB_CHECK(b.type == f.type && b.row_bytes == f.row_bytes, "block ", i, " holds ",
-                  FeatureTypeName(b.type), " rows of ", b.row_bytes, " bytes, block ", first, " ",
-                  FeatureTypeName(f.type), " rows of ", f.row_bytes, " bytes");
+    if (b.type != f.type || b.row_bytes != f.row_bytes) {
+      PLACEDB_THROW_INVALID("descriptor block ", i, " holds ", FeatureTypeName(b.type), " rows of ",
+                            b.row_bytes, " bytes, block ", first, " ", FeatureTypeName(f.type),
+                            " rows of ", f.row_bytes, " bytes");
+    }
   }
-  PLACEDB_CHECK(first >= 0, "no descriptor rows to train a vocabulary on");
+  if (first < 0) PLACEDB_THROW_INVALID("no descriptor rows to train a vocabulary on");
   *type = blocks[first].type;
   *row_bytes = blocks[first].row_bytes;
 }
@@ -340,8 +346,7 @@ Vocabulary Vocabulary::Train(const std::vector<DescriptorBlock>& blocks,
                              const VocabularyOptions& options, ThreadPool* pool,
                              ProgressBar* progress) {
   PLACEDB_CHECK_OPTIONS(options);
-  if (!HostIsLittleEndian())
-    PLACEDB_THROW_RUNTIME("placedb vocabularies need a little-endian host");
+  if (!HostIsLittleEndian()) PLACEDB_THROW_IO("placedb vocabularies need a little-endian host");
   FeatureType type;
   int row_bytes;
   CheckBlocks(blocks, &type, &row_bytes);
@@ -350,8 +355,9 @@ Vocabulary Vocabulary::Train(const std::vector<DescriptorBlock>& blocks,
   if (type == FeatureType::kSurf) {
     for (const uint8_t* row : sample) {
       const auto* v = reinterpret_cast<const float*>(row);
-      PLACEDB_CHECK(std::all_of(v, v + row_bytes / 4, [](float x) { return std::isfinite(x); }),
-                    "a SURF descriptor row is not finite");
+      if (!std::all_of(v, v + row_bytes / 4, [](float x) { return std::isfinite(x); })) {
+        PLACEDB_THROW_INVALID("a SURF descriptor row to train on is not finite");
+      }
     }
   }
 
@@ -460,9 +466,8 @@ void Vocabulary::Bind(flat_file::Image image) {
 }
 
 Vocabulary Vocabulary::FromImage(flat_file::Image image, const std::string& shown) {
-  if (!HostIsLittleEndian())
-    PLACEDB_THROW_RUNTIME("placedb vocabularies need a little-endian host");
-  auto fail = [&](const auto&... what) { PLACEDB_THROW_RUNTIME(shown, ": ", what...); };
+  if (!HostIsLittleEndian()) PLACEDB_THROW_IO("placedb vocabularies need a little-endian host");
+  auto fail = [&](const auto&... what) { PLACEDB_THROW_CORRUPT(shown, ": ", what...); };
   flat_file::CheckSealed(image, kVocabularyMagic, kVocabularyFormatVersion, "vocabulary", shown);
   const auto header = flat_file::ReadHeader<VocabularyFileHeader>(image.data);
   const uint32_t type = header.feature_type;

@@ -134,7 +134,7 @@ class Vocabulary {
   // differ: the L2 kernel the CPU runs rounds in its own order.) `progress`
   // (may be nullptr) is advanced by TrainingWork() units in all; give the
   // bar that total.
-  // Throws std::invalid_argument for bad options, no rows, blocks of
+  // Throws InvalidArgument for bad options, no rows, blocks of
   // different types or widths, a width the type cannot have, or SURF rows
   // that are not finite.
   static Vocabulary Train(const std::vector<DescriptorBlock>& blocks,
@@ -153,7 +153,8 @@ class Vocabulary {
   // at tens of GB/s): magic, version, sizes, checksums, the parameters, the
   // tree (children in range and breadth first, so acyclic; levels; children
   // counts), dense word ids, finite non-negative idf, finite SURF centroids.
-  // Any failure is a std::runtime_error naming the file and what is wrong.
+  // Any failure is CorruptDatabase naming the file and what is wrong
+  // (NotFound when there is no file, IoError when it cannot be read).
   static Vocabulary Open(const std::string& path);
   // The same on a file mapped by the caller; `shown_name` names it in errors.
   static Vocabulary FromMapped(std::shared_ptr<const MappedFile> file,

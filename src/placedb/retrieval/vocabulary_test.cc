@@ -209,7 +209,7 @@ TEST(VocabularyOptions, CheckRejectsOutOfRange) {
             }).find("max_training_descriptors"),
             std::string::npos);
   const Synthetic s = MakeOrb(5, 10, 4, 1);
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
       [&] { Vocabulary::Train(s.Blocks(), Options(1, 2), nullptr, nullptr); }, "branching"));
 }
 
@@ -220,19 +220,19 @@ TEST(Vocabulary, TrainRejectsBadInput) {
   auto train = [&](const std::vector<DescriptorBlock>& blocks) {
     return [&, blocks] { Vocabulary::Train(blocks, o, nullptr, nullptr); };
   };
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(train({}), "no descriptor blocks"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(train({}), "no descriptor blocks"));
   DescriptorBlock empty;
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(train({empty, empty}), "no descriptor rows"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(train({empty, empty}), "no descriptor rows"));
   std::vector<DescriptorBlock> mixed = orb.Blocks();
   mixed.push_back(surf.Blocks()[0]);
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(train(mixed), "block 1 holds surf rows"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(train(mixed), "block 1 holds surf rows"));
   std::vector<DescriptorBlock> narrow = orb.Blocks();
   narrow[0].row_bytes = 16;
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(train(narrow), "16 bytes"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(train(narrow), "16 bytes"));
   Synthetic nan = surf;
   const float bad = std::numeric_limits<float>::quiet_NaN();
   std::memcpy(nan.data.data() + 12, &bad, sizeof(bad));
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(train(nan.Blocks()), "not finite"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(train(nan.Blocks()), "not finite"));
 }
 
 TEST(Vocabulary, TrainingIsDeterministicForAnyThreadCount) {
@@ -416,11 +416,11 @@ class VocabularyFileTest : public ::testing::Test {
     ASSERT_EQ(layout.end(), good_.size());
   }
 
-  // Opening `bytes` fails with a std::runtime_error naming the file and
+  // Opening `bytes` fails with CorruptDatabase naming the file and
   // saying `what`.
   ::testing::AssertionResult Rejects(const std::string& bytes, const std::string& what) {
     const std::string path = dir_.Write("damaged.bin", bytes);
-    return ThrowsWith<std::runtime_error>([&] { Vocabulary::Open(path); }, {path, what});
+    return ThrowsWith<CorruptDatabase>([&] { Vocabulary::Open(path); }, {path, what});
   }
   // `good_` with node `index` or the header changed by `edit`, resealed so
   // that the checksums hold.
@@ -561,7 +561,7 @@ TEST_F(VocabularyFileTest, ResealedRandomDamageNeverCrashes) {
       const Vocabulary v = Vocabulary::Open(path);
       for (size_t r = 0; r < s.rows(); ++r) ASSERT_LT(v.Word(s.Row(r)), v.num_words());
       ++opened;
-    } catch (const std::runtime_error&) {
+    } catch (const CorruptDatabase&) {
     }
   }
   EXPECT_GT(opened, 0);  // centroid bits may take any value
@@ -585,10 +585,10 @@ TEST(Vocabulary, OpenRejectsNonFiniteSurfCentroids) {
   const std::string path = dir.Write(
       "surf.bin",
       flat_file::Patched(bytes, centroids + 256 + 8, std::numeric_limits<float>::infinity()));
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { Vocabulary::Open(path); },
-                                             {path, "centroid is not finite"}));
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { Vocabulary::Open(dir.Path("missing.bin")); },
-                                             "missing.bin"));
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { Vocabulary::Open(path); },
+                                          {path, "centroid is not finite"}));
+  EXPECT_TRUE(
+      ThrowsWith<NotFound>([&] { Vocabulary::Open(dir.Path("missing.bin")); }, "missing.bin"));
 }
 
 }  // namespace

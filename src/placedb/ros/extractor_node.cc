@@ -23,7 +23,7 @@ int main(int argc, char** argv) {
   if (!placedb::ros_node::Init(
           &argc, argv, [] { return std::string("placedb_extractor"); }, app, &code))
     return code;
-  try {
+  return placedb::ros_node::RunNode("placedb_extractor", [&] {
     placedb::ros_node::PinToCpu(cpu);
     placedb::LoadOptions table;
     table.contents = placedb::LoadContents::kKeyframeTable;
@@ -46,9 +46,6 @@ int main(int argc, char** argv) {
     ROS_INFO("placedb_extractor: %s features for %s", placedb::FeatureTypeName(db.feature_type()),
              dir.c_str());
     ros::spin();
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "placedb_extractor: error: %s\n", e.what());
-    return 1;
-  }
-  return 0;
+    return 0;
+  });
 }

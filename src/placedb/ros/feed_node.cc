@@ -52,12 +52,12 @@ int main(int argc, char** argv) {
   if (!placedb::ros_node::Init(
           &argc, argv, [] { return std::string("placedb_feed"); }, app, &code))
     return code;
-  try {
-    if (!(rate >= 0 && rate <= 1000)) PLACEDB_THROW_INVALID("--rate must be in [0, 1000]");
+  return placedb::ros_node::RunNode("placedb_feed", [&] {
+    if (!(rate >= 0 && rate <= 1000)) PLACEDB_THROW_INVALID("`rate` must be in [0, 1000]");
     if (!(answer_timeout_ms > 0 && answer_timeout_ms <= 600000))
-      PLACEDB_THROW_INVALID("--answer-timeout-ms must be in (0, 600000]");
-    if (loops < 1 || loops > 1000000) PLACEDB_THROW_INVALID("--loops must be in [1, 1000000]");
-    if (wait_for < 0 || wait_for > 4096) PLACEDB_THROW_INVALID("--wait-for must be in [0, 4096]");
+      PLACEDB_THROW_INVALID("`answer_timeout_ms` must be in (0, 600000]");
+    if (loops < 1 || loops > 1000000) PLACEDB_THROW_INVALID("`loops` must be in [1, 1000000]");
+    if (wait_for < 0 || wait_for > 4096) PLACEDB_THROW_INVALID("`wait_for` must be in [0, 4096]");
     const std::vector<placedb::Frame> frames = source.Read();
     ros::NodeHandle nh;
     image_transport::ImageTransport it(nh);
@@ -149,9 +149,6 @@ int main(int argc, char** argv) {
       ros::WallDuration(0.001).sleep();
     }
     ROS_INFO("placedb_feed: published %lu frames", static_cast<unsigned long>(seq));
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "placedb_feed: error: %s\n", e.what());
-    return 1;
-  }
-  return 0;
+    return 0;
+  });
 }

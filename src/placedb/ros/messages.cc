@@ -8,8 +8,10 @@
 namespace placedb {
 namespace {
 
+// A message from the wire that is not what it should be: the sender's input.
+// The message starts with the cause, what a node's DropLog counts drops by.
 [[noreturn]] void Bad(const std::string& cause, const std::string& what) {
-  throw std::invalid_argument(cause + ": " + what);
+  PLACEDB_THROW_INVALID(cause, ": ", what);
 }
 
 placedb_msgs::RankedKeyframe RankedToMessage(const RankedKeyframe& k) {
@@ -40,7 +42,9 @@ placedb_msgs::Features FeaturesToMessage(const FeatureSet& f, uint64_t frame_seq
                         static_cast<float>(k.class_id)});
   }
   if (!f.empty()) {
-    PLACEDB_CHECK(f.descriptors.isContinuous(), "descriptors must be contiguous");
+    if (!f.descriptors.isContinuous()) {
+      PLACEDB_THROW_INVALID("the descriptors must be one contiguous matrix");
+    }
     const auto* data = f.descriptors.ptr<uint8_t>();
     m.descriptors.assign(data, data + f.descriptors.total() * f.descriptors.elemSize());
   }
@@ -51,7 +55,7 @@ FeatureSet FeaturesFromMessage(const placedb_msgs::Features& m) {
   FeatureSet f;
   try {
     f.type = ParseFeatureType(m.feature_type);
-  } catch (const std::invalid_argument&) {
+  } catch (const InvalidArgument&) {
     Bad("feature type", "'" + m.feature_type.substr(0, 16) + "' is not orb or surf");
   }
   const bool orb = f.type == FeatureType::kOrb;

@@ -1,6 +1,6 @@
 // placedb's values to and from its ROS messages (placedb_msgs). Every
-// message from the wire is validated: a bad one throws std::invalid_argument
-// whose message starts with its cause, for the nodes to log once per cause.
+// message from the wire is validated: a bad one throws InvalidArgument whose
+// message starts with its cause, for the nodes to log once per cause.
 #pragma once
 
 #include <placedb_msgs/Answer.h>

@@ -8,10 +8,17 @@
 #include <cstring>
 #include <thread>
 
+#include <spdlog/spdlog.h>
+
+#include "placedb/cli/errors.h"
 #include "placedb/util/check.h"
 
 namespace placedb {
 namespace ros_node {
+namespace {
+// --verbose, for RunNode's error line (a node parses its flags once).
+bool verbose = false;
+}  // namespace
 
 bool Init(int* argc, char** argv, const std::function<std::string()>& name, CLI::App& app,
           int* exit_code) {
@@ -20,7 +27,8 @@ bool Init(int* argc, char** argv, const std::function<std::string()>& name, CLI:
   std::setvbuf(stdout, nullptr, _IOLBF, 0);
   std::vector<std::string> args;
   ros::removeROSArgs(*argc, argv, args);
-  const std::string program = app.get_name().empty() ? "placedb node" : app.get_name();
+  app.add_flag("--verbose", verbose,
+               "debug logging; an error line also names where in placedb it was raised");
   try {
     std::vector<std::string> reversed(args.rbegin(), args.rend() - 1);  // CLI11 wants them reversed
     app.parse(reversed);
@@ -29,22 +37,31 @@ bool Init(int* argc, char** argv, const std::function<std::string()>& name, CLI:
     return false;
   } catch (const CLI::ParseError& e) {
     std::fprintf(stderr, "%s: error: %s (see --help)\n", argv[0], e.what());
-    *exit_code = 1;
+    *exit_code = cli::kExitInput;
     return false;
   }
+  if (verbose) spdlog::set_level(spdlog::level::debug);
   ros::init(*argc, argv, name());
   return true;
+}
+
+int RunNode(const std::string& program, const std::function<int()>& work) {
+  try {
+    return work();
+  } catch (...) {
+    return cli::ReportCurrentException(program, verbose);
+  }
 }
 
 void PinToCpu(int cpu) {
   if (cpu < 0) return;
   const long cpus = ::sysconf(_SC_NPROCESSORS_CONF);
-  if (cpu >= cpus) PLACEDB_THROW_INVALID("--cpu ", cpu, ": this machine has CPUs 0 to ", cpus - 1);
+  if (cpu >= cpus) PLACEDB_THROW_INVALID("`cpu` ", cpu, ": this machine has CPUs 0 to ", cpus - 1);
   cpu_set_t set;
   CPU_ZERO(&set);
   CPU_SET(cpu, &set);
   if (::sched_setaffinity(0, sizeof(set), &set) != 0) {
-    PLACEDB_THROW_RUNTIME("cannot pin to CPU ", cpu, ": ", std::strerror(errno));
+    PLACEDB_THROW_IO("cannot pin to CPU ", cpu, ": ", std::strerror(errno));
   }
 }
 
@@ -62,15 +79,11 @@ void DropLog::Drop(const std::string& cause, const std::string& detail) {
 }
 
 std::string CauseOf(const std::string& message) {
-  // Library messages start with "placedb/...cc:123: "; the cause follows.
-  std::string m = message;
-  const size_t code = m.find(".cc:");
-  if (code != std::string::npos) {
-    const size_t after = m.find(": ", code);
-    if (after != std::string::npos) m = m.substr(after + 2);
-  }
-  const size_t colon = m.find(':');
-  return m.substr(0, std::min<size_t>(colon == std::string::npos ? m.size() : colon, 48));
+  // Library messages carry no source location (it is in Error::where()):
+  // the cause is their first words.
+  const size_t colon = message.find(':');
+  return message.substr(0,
+                        std::min<size_t>(colon == std::string::npos ? message.size() : colon, 48));
 }
 
 double WallMs() {

@@ -16,14 +16,20 @@ namespace ros_node {
 // The node's own flags (ROS's remapping arguments, name:=value, are left to
 // ROS), then ros::init under the name `name()` gives once the flags are
 // known (a worker is placedb_worker_<i>; __name:= still overrides it). A bad
-// flag prints one line and exits 1, --help exits 0. Returns false when the
-// node should exit with `*exit_code`.
+// flag prints one line and exits 1, --help exits 0. Every node takes
+// --verbose (debug logging; an error line names where placedb raised it).
+// Returns false when the node should exit with `*exit_code`.
 bool Init(int* argc, char** argv, const std::function<std::string()>& name, CLI::App& app,
           int* exit_code);
 
+// Runs a node's work and returns its exit code: an exception becomes one line
+// "<program>: error: <message>" (option names as flags) and the code of its
+// kind, as the placedb binary does (cli/errors.h: 1 input, 74 I/O, 70 a bug).
+int RunNode(const std::string& program, const std::function<int()>& work);
+
 // Pins the whole process to CPU `cpu` (before its threads start: they
-// inherit it) and logs it; -1 leaves it alone. Throws std::invalid_argument
-// for a CPU that does not exist, std::runtime_error when the kernel refuses.
+// inherit it) and logs it; -1 leaves it alone. Throws InvalidArgument for a
+// CPU that does not exist, IoError when the kernel refuses.
 void PinToCpu(int cpu);
 
 // Logs a dropped message once per cause (and every 100th repeat), so a
@@ -40,7 +46,8 @@ class DropLog {
   uint64_t total_ = 0;
 };
 
-// The cause of an exception message "cause: detail" (its text up to ':').
+// The cause of an exception message "cause: detail" (its text up to ':',
+// at most 48 bytes): what a drop is counted under.
 std::string CauseOf(const std::string& message);
 
 // Wall-clock time, milliseconds since the epoch (comparable across nodes on

@@ -8,8 +8,10 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <thread>
@@ -22,7 +24,7 @@ namespace fs = std::filesystem;
 
 int LoopbackRos::FreeLoopbackPort() {
   const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  PLACEDB_CHECK(fd >= 0, "no socket");
+  if (fd < 0) PLACEDB_THROW_IO("cannot open a socket: ", std::strerror(errno));
   sockaddr_in addr{};
   addr.sin_family = AF_INET;
   addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
@@ -31,7 +33,7 @@ int LoopbackRos::FreeLoopbackPort() {
   const bool ok = ::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) == 0 &&
                   ::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len) == 0;
   ::close(fd);
-  PLACEDB_CHECK(ok, "cannot find a free port on 127.0.0.1");
+  if (!ok) PLACEDB_THROW_IO("cannot find a free port on 127.0.0.1");
   return ntohs(addr.sin_port);
 }
 
@@ -60,7 +62,7 @@ pid_t LoopbackRos::Start(std::vector<std::string> args, const std::string& log,
   if (fs::exists(local)) args[0] = local;
   const std::string out = (fs::path(dir_) / log).string();
   const pid_t pid = ::fork();
-  PLACEDB_CHECK(pid >= 0, "fork failed");
+  if (pid < 0) PLACEDB_THROW_IO("cannot start ", args[0], ": ", std::strerror(errno));
   if (pid == 0) {
     if (!ns.empty()) ::setenv("ROS_NAMESPACE", ns.c_str(), 1);
     const int fd = ::open(out.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);

@@ -36,7 +36,7 @@ class Voter {
         drops_("placedb_voter") {
     if (!answers_file.empty()) {
       answers_log_.open(answers_file, std::ios::app);
-      PLACEDB_CHECK(answers_log_.good(), "cannot write ", answers_file);
+      if (!answers_log_.good()) PLACEDB_THROW_IO("cannot write ", answers_file);
     }
     answers_ = nh_.advertise<placedb_msgs::Answer>("answers", 100);
     poses_ = nh_.advertise<geometry_msgs::PoseStamped>("pose", 100);
@@ -162,7 +162,7 @@ int main(int argc, char** argv) {
   if (!placedb::ros_node::Init(
           &argc, argv, [] { return std::string("placedb_voter"); }, app, &code))
     return code;
-  try {
+  return placedb::ros_node::RunNode("placedb_voter", [&] {
     vote.query = query.Get();
     PLACEDB_CHECK_OPTIONS(vote);
     placedb::LoadOptions table;
@@ -172,9 +172,6 @@ int main(int argc, char** argv) {
              keyframes.size(), dir.c_str(), vote.num_partitions, scheme.c_str(), vote.deadline_ms);
     placedb::Voter voter(std::move(keyframes), vote, scheme, map_frame, answers_file);
     ros::spin();
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "placedb_voter: error: %s\n", e.what());
-    return 1;
-  }
-  return 0;
+    return 0;
+  });
 }

@@ -154,8 +154,8 @@ int main(int argc, char** argv) {
            (slash == std::string::npos ? std::string("x") : db.partition.substr(0, slash));
   };
   if (!placedb::ros_node::Init(&argc, argv, name, app, &code)) return code;
-  try {
-    if (db.partition.empty()) PLACEDB_THROW_INVALID("--partition I/N is needed (e.g. 0/3)");
+  return placedb::ros_node::RunNode("placedb_worker", [&] {
+    if (db.partition.empty()) PLACEDB_THROW_INVALID("`partition` I/N is needed (e.g. 0/3)");
     placedb::ros_node::PinToCpu(cpu);
     if (cpu >= 0) ROS_INFO("placedb_worker: pinned to CPU %d", cpu);
     // A worker is one CPU's worth of work (the paper's node per processor):
@@ -168,9 +168,6 @@ int main(int argc, char** argv) {
              opened.Read().database().num_features(), input.c_str());
     placedb::Worker worker(std::move(opened), query.Get(), partition, input);
     ros::spin();
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "placedb_worker: error: %s\n", e.what());
-    return 1;
-  }
-  return 0;
+    return 0;
+  });
 }

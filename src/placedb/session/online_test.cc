@@ -75,9 +75,9 @@ TEST_P(OnlineTest, AddRemoveSaveReopen) {
   ASSERT_NE(self.best(), nullptr);
   EXPECT_EQ(self.best()->keyframe_id, 40);
   EXPECT_TRUE(fs::exists(self.best()->stored_image)) << self.best()->stored_image;
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
       [&] { db.Add(FrameOf(40), cv::imread(RtabmapImage(40))); }, "taken"));
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { db.Add(FrameOf(46), cv::Mat()); }, "empty"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.Add(FrameOf(46), cv::Mat()); }, "empty"));
 
   EXPECT_TRUE(db.Remove(40));
   EXPECT_FALSE(db.Remove(40));
@@ -245,7 +245,7 @@ TEST_P(OnlineTest, TwoAddsOfOneIdOneWins) {
   auto add = [&](const cv::Mat& image) {
     try {
       db.Add(FrameOf(31), image);
-    } catch (const std::invalid_argument& e) {
+    } catch (const InvalidArgument& e) {
       EXPECT_NE(std::string(e.what()).find("is taken"), std::string::npos) << e.what();
       ++taken;
     }
@@ -272,8 +272,8 @@ TEST_P(OnlineTest, AFailedAddLeavesNothingBehind) {
                                      fs::directory_iterator());
   Frame bad = FrameOf(31);
   bad.timestamp = std::numeric_limits<double>::quiet_NaN();
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
-      [&] { db.Add(bad, cv::imread(RtabmapImage(31))); }, "timestamp"));
+  EXPECT_TRUE(
+      ThrowsWith<InvalidArgument>([&] { db.Add(bad, cv::imread(RtabmapImage(31))); }, "timestamp"));
   EXPECT_EQ(std::distance(fs::directory_iterator(Dir() + "/images"), fs::directory_iterator()),
             static_cast<std::ptrdiff_t>(files));
   EXPECT_FALSE(fs::exists(Dir() + "/images/000031.png"));
@@ -296,10 +296,10 @@ TEST_P(OnlineTest, OneWriterAtATimeAndNoLostUpdates) {
   PlaceDatabase first = PlaceDatabase::Open(Dir());
   PlaceDatabase second = PlaceDatabase::Open(Dir());
   first.Add(FrameOf(31), cv::imread(RtabmapImage(31)));
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { second.Remove(1); }, "another process"));
+  EXPECT_TRUE(ThrowsWith<IoError>([&] { second.Remove(1); }, "another process"));
   first.Save();
   // first has saved (and let go): second's view is now stale.
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { second.Remove(1); }, "rewritten on disk"));
+  EXPECT_TRUE(ThrowsWith<IoError>([&] { second.Remove(1); }, "rewritten on disk"));
   EXPECT_TRUE(second.FindKeyframe(1));
   PlaceDatabase third = PlaceDatabase::Open(Dir());
   EXPECT_TRUE(third.Remove(1));
@@ -354,7 +354,7 @@ TEST_P(OnlineTest, DeadlineCountsTheWaitForAWriter) {
 // Saving a subset over the whole database is refused (it would replace it).
 TEST_P(OnlineTest, SavingASubsetOverTheDatabaseIsRefused) {
   const Database part = Database::Load(Dir(), KeyframeSubset::Partition(0, 2));
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { part.Save(Dir()); }, "subset would replace"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { part.Save(Dir()); }, "subset would replace"));
   EXPECT_EQ(Database::Load(Dir()).size(), 30u);
   fs::create_directories(tmp_.Path("part"));
   part.Save(tmp_.Path("part"));
@@ -482,8 +482,8 @@ TEST_P(OnlineTest, SubsetSessionsCannotChange) {
   OpenOptions open;
   open.subset = KeyframeSubset::Partition(0, 2, PartitionScheme::kContiguous);
   PlaceDatabase part = PlaceDatabase::Open(Dir(), open);
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { part.Remove(1); }, "whole database"));
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { part.Save(); }, "whole database"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { part.Remove(1); }, "whole database"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { part.Save(); }, "whole database"));
 }
 
 INSTANTIATE_TEST_SUITE_P(Index, OnlineTest, ::testing::Values(IndexKind::kNone, IndexKind::kBow),

@@ -77,7 +77,8 @@ std::optional<BowIndex> OpenBowIndex(const std::string& dir, const Database& db,
                                      std::shared_ptr<const Vocabulary>* vocabulary_out) {
   const nlohmann::json& manifest = db.info();
   if (!manifest.contains("index")) return std::nullopt;
-  const JsonReader index(manifest["index"], dir + "/manifest.json: index", true);
+  const JsonReader index(manifest["index"], dir + "/manifest.json: index",
+                         JsonOrigin::kDatabaseFile);
   if (index.String("kind") != "bow") index.Fail("kind", "is not bow");
   const std::string vocabulary_name = index.String("vocabulary");
   const std::string bow_name = index.String("bow");
@@ -87,7 +88,7 @@ std::optional<BowIndex> OpenBowIndex(const std::string& dir, const Database& db,
   auto map = [&](const std::string& name) {
     std::shared_ptr<const MappedFile> file = handle.MapFile(name);
     if (!file) {
-      PLACEDB_THROW_RUNTIME("database ", dir, " is incomplete: ", name,
+      PLACEDB_THROW_CORRUPT("database ", dir, " is incomplete: ", name,
                             " (named by its manifest) is missing");
     }
     return file;
@@ -96,7 +97,7 @@ std::optional<BowIndex> OpenBowIndex(const std::string& dir, const Database& db,
   auto vocabulary = std::make_shared<const Vocabulary>(
       Vocabulary::FromMapped(map(vocabulary_name), shown_vocabulary));
   if (vocabulary->type() != db.feature_type() || vocabulary->row_bytes() != db.descriptor_bytes()) {
-    PLACEDB_THROW_RUNTIME(shown_vocabulary, " is for other descriptors than the database's ",
+    PLACEDB_THROW_CORRUPT(shown_vocabulary, " is for other descriptors than the database's ",
                           "(corrupted database)");
   }
   *vocabulary_out = vocabulary;
@@ -169,12 +170,12 @@ PlaceDatabase PlaceDatabase::Open(const std::string& dir, const OpenOptions& opt
   impl->build = BuildOptionsFromManifest(db.info(), dir);
   const ExtractorOptions& features = impl->build.features;
   if (features.type != db.feature_type()) {
-    PLACEDB_THROW_RUNTIME(dir, ": the manifest's feature settings say ",
+    PLACEDB_THROW_CORRUPT(dir, ": the manifest's feature settings say ",
                           FeatureTypeName(features.type), " but the keyframes hold ",
                           FeatureTypeName(db.feature_type()), " (corrupted database)");
   }
   if (DescriptorBytes(features) != db.descriptor_bytes()) {
-    PLACEDB_THROW_RUNTIME(dir, ": the manifest's feature settings give ", DescriptorBytes(features),
+    PLACEDB_THROW_CORRUPT(dir, ": the manifest's feature settings give ", DescriptorBytes(features),
                           "-byte descriptors but the keyframes hold ", db.descriptor_bytes(),
                           "-byte ones (corrupted database)");
   }
@@ -369,10 +370,13 @@ void PlaceDatabase::BeginChange() {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
     lock = DirectoryLock::TryLock(m.dir);
   }
+  // Another writer, in this process or another, is not the caller's mistake
+  // nor damage: the same call succeeds once it is done (IoError, like any
+  // write the system cannot do now).
   if (!lock) {
-    PLACEDB_THROW_RUNTIME("the database ", m.dir,
-                          " is being changed by another process or session; one writer at a "
-                          "time (try again when it has saved)");
+    PLACEDB_THROW_IO("the database ", m.dir,
+                     " is being changed by another process or session; one writer at a "
+                     "time (try again when it has saved)");
   }
   const std::string manifest_path = (fs::path(m.dir) / Database::kManifestFile).string();
   std::string text;
@@ -385,9 +389,9 @@ void PlaceDatabase::BeginChange() {
     same = false;
   }
   if (!same) {
-    PLACEDB_THROW_RUNTIME("the database ", m.dir,
-                          " was rewritten on disk since this session opened it; open it again "
-                          "to change it");
+    PLACEDB_THROW_IO("the database ", m.dir,
+                     " was rewritten on disk since this session opened it; open it again "
+                     "to change it");
   }
   m.folder_lock = std::move(lock);
 }
@@ -418,7 +422,9 @@ void PlaceDatabase::Add(const Frame& frame, const cv::Mat& image) {
   if (m.build.store_images) {
     char name[32];
     std::snprintf(name, sizeof(name), "images/%06d.png", frame.id);
-    fs::create_directories(fs::path(m.dir) / "images");
+    std::error_code ec;
+    fs::create_directories(fs::path(m.dir) / "images", ec);
+    if (ec) PLACEDB_THROW_IO("cannot create ", m.dir, "/images: ", ec.message());
     WriteFileAtomic((fs::path(m.dir) / name).string(),
                     std::string(reinterpret_cast<const char*>(png.data()), png.size()));
     written = name;

@@ -72,9 +72,9 @@ class PlaceDatabase {
   // Opens the database directory `dir`: loads the keyframes (or the subset),
   // reads every build setting from the manifest and checks it (the feature
   // options must also agree with the stored descriptors), and creates the
-  // extractor queries need. Errors: std::runtime_error for a missing or
-  // damaged database, std::invalid_argument for bad options or a feature type
-  // other than options.expected_features. Opening the whole database also
+  // extractor queries need. Errors: NotFound for no database at `dir`,
+  // CorruptDatabase for a damaged one, InvalidArgument for bad options or a
+  // feature type other than options.expected_features. Opening the whole database also
   // sweeps the debris of killed writers (temporary files of processes that
   // are gone, keyframe and index files the manifest does not name, PNGs no
   // keyframe names) when no other process is changing it and the folder is
@@ -104,7 +104,7 @@ class PlaceDatabase {
   std::optional<Keyframe> FindKeyframe(int32_t id) const;
   // The ids of the keyframes answering now, in storage order.
   std::vector<int32_t> keyframe_ids() const;
-  // The features of keyframe `id` (a copy); std::invalid_argument when
+  // The features of keyframe `id` (a copy); InvalidArgument when
   // there is no such keyframe.
   FeatureSet KeyframeFeatures(int32_t id) const;
   // Path of a keyframe's stored PNG ("" when the database keeps none).
@@ -140,13 +140,13 @@ class PlaceDatabase {
 
   // The query features of an image, as Query(image) computes them: an 8-bit
   // gray, BGR or BGRA frame, full and uncropped. An empty image or another
-  // depth is std::invalid_argument.
+  // depth is InvalidArgument.
   FeatureSet Extract(const cv::Mat& image) const;
 
   // Where was this frame taken? retrieve -> match -> verify -> decide.
   QueryResult Query(const cv::Mat& image, const QueryOptions& options = QueryOptions()) const;
   // The same for features computed elsewhere (another node, another process).
-  // They are validated against the database (std::invalid_argument).
+  // They are validated against the database (InvalidArgument).
   QueryResult Query(const FeatureSet& features, const QueryOptions& options = QueryOptions()) const;
   // Both restricted to keyframe indices `keyframes` (a partition, a cluster,
   // bag-of-words candidates): only those are examined. Indices are those of
@@ -158,7 +158,7 @@ class PlaceDatabase {
 
   // Why keyframe `keyframe_id` matched `features` (or did not): the match
   // and verify stages on it alone, every match kept (MatchKeyframe). For
-  // pictures and diagnostics. std::invalid_argument for an unknown id.
+  // pictures and diagnostics. InvalidArgument for an unknown id.
   MatchDetail Explain(const FeatureSet& features, int32_t keyframe_id,
                       const QueryOptions& options = QueryOptions()) const;
 
@@ -168,7 +168,7 @@ class PlaceDatabase {
   // database keeps images. `frame` gives its id (>= 1, new), timestamp, pose
   // and source path. The work is done before the keyframe is published:
   // queries wait only while it is appended, and see it whole or not at all.
-  // Writers are serialised. std::invalid_argument for a taken id, a bad
+  // Writers are serialised. InvalidArgument for a taken id, a bad
   // image or a session opened on a subset (open the whole database).
   void Add(const Frame& frame, const cv::Mat& image);
   // The same with features computed elsewhere (in the stored image's frame).
@@ -183,7 +183,7 @@ class PlaceDatabase {
   // rebuilding the bag-of-words index with the same vocabulary. The session
   // then reads the saved generation: it answers as a reopened database does.
   // Debris of earlier crashes (temporary files, files no manifest names,
-  // PNGs no keyframe names) is swept. Refused (std::invalid_argument) for a
+  // PNGs no keyframe names) is swept. Refused (InvalidArgument) for a
   // session opened on a subset: that would replace the whole database.
   void Save();
 

@@ -146,8 +146,7 @@ TEST_F(PlaceDatabaseTest, RestrictionsAndIdSubsets) {
   const PlaceDatabase subset = PlaceDatabase::Open(Dir(), o);
   EXPECT_EQ(subset.size(), 5u);
   EXPECT_EQ(subset.Query(image).ranked, among.ranked);
-  EXPECT_TRUE(
-      ThrowsWith<std::invalid_argument>([&] { db.QueryAmong(image, {40}); }, "out of range"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.QueryAmong(image, {40}); }, "out of range"));
 }
 
 // Bad input to a session: another feature type than expected, images that
@@ -155,25 +154,27 @@ TEST_F(PlaceDatabaseTest, RestrictionsAndIdSubsets) {
 TEST_F(PlaceDatabaseTest, BadInputIsAClearError) {
   OpenOptions surf;
   surf.expected_features = FeatureType::kSurf;
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { PlaceDatabase::Open(Dir(), surf); },
-                                                {"holds orb features but surf"}));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { PlaceDatabase::Open(Dir(), surf); },
+                                          {"holds orb features but surf"}));
+  EXPECT_TRUE(ThrowsWith<NotFound>([&] { PlaceDatabase::Open(Dir() + "/no_such_db"); },
+                                   {"no database at", "no_such_db"}));
   const PlaceDatabase db = PlaceDatabase::Open(Dir());
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { db.Query(cv::Mat()); }, "empty"));
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.Query(cv::Mat()); }, "empty"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
       [&] { db.Query(cv::Mat(100, 100, CV_16UC1, cv::Scalar(0))); }, "8-bit"));
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
       [&] { db.Query(cv::Mat(100, 100, CV_8UC2, cv::Scalar(0))); }, "8-bit"));
   // A tiny or flat frame is no error: no match.
   EXPECT_FALSE(db.Query(cv::Mat(5, 5, CV_8UC3, cv::Scalar(10, 20, 30))).matched);
   EXPECT_FALSE(db.Query(cv::Mat(384, 512, CV_8UC1, cv::Scalar(90))).matched);
   OpenOptions bad;
   bad.threads = -1;
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { PlaceDatabase::Open(Dir(), bad); },
-                                                "threads must be in [0, 1024]"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { PlaceDatabase::Open(Dir(), bad); },
+                                          "threads must be in [0, 1024]"));
   QueryOptions q;
   q.top_k = 0;
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { db.Query(cv::imread(RtabmapImage(42)), q); },
-                                                "top_k"));
+  EXPECT_TRUE(
+      ThrowsWith<InvalidArgument>([&] { db.Query(cv::imread(RtabmapImage(42)), q); }, "top_k"));
 }
 
 // A manifest whose feature settings disagree with the stored descriptors (a
@@ -191,13 +192,13 @@ TEST_F(PlaceDatabaseTest, ManifestSettingsMustAgreeWithTheKeyframes) {
   m["settings"]["features"]["type"] = "surf";
   m["feature_type"] = "orb";
   WriteFileAtomic(manifest_path, m.dump());
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { PlaceDatabase::Open(copy.string()); },
-                                             "the manifest's feature settings say surf"));
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { PlaceDatabase::Open(copy.string()); },
+                                          "the manifest's feature settings say surf"));
   m = original;
   m["settings"]["resize"] = "4";
   WriteFileAtomic(manifest_path, m.dump());
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { PlaceDatabase::Open(copy.string()); },
-                                             "resize is not an integer"));
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { PlaceDatabase::Open(copy.string()); },
+                                          "resize is not an integer"));
   WriteFileAtomic(manifest_path, original.dump());
   EXPECT_NO_THROW(PlaceDatabase::Open(copy.string()));
 }

@@ -129,8 +129,8 @@ TEST_F(SearchTest, BowNeedsAnIndex) {
   EXPECT_EQ(db.Read().bow_index(), nullptr);
   QueryOptions bow;
   bow.retrieval.method = RetrievalMethod::kBow;
-  EXPECT_TRUE(
-      ThrowsWith<std::invalid_argument>([&] { db.Query(Features(42), bow); }, "--index bow"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.Query(Features(42), bow); },
+                                          "rebuild the database with index set to bow"));
 }
 
 // A subset opened from a bow database rebuilds its index in memory.

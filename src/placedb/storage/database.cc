@@ -33,6 +33,9 @@ namespace {
 
 constexpr size_t kMaxPathBytes = 65536;
 constexpr size_t kMaxManifestBytes = 64 << 20;
+// What asking a keyframe table (LoadContents::kKeyframeTable) for features
+// says: the caller opened it so.
+constexpr char kNoFeatures[] = "the database was opened as a keyframe table, without features";
 
 // Little-endian field access in a byte image (the host is checked to be
 // little-endian before any file is read or written).
@@ -156,8 +159,10 @@ Database::Database(FeatureType type, int descriptor_bytes)
     : feature_type_(type), descriptor_bytes_(descriptor_bytes) {
   const bool ok = type == FeatureType::kOrb ? descriptor_bytes == 32
                                             : (descriptor_bytes == 256 || descriptor_bytes == 512);
-  PLACEDB_CHECK(ok, FeatureTypeName(type), " descriptors cannot be ", descriptor_bytes,
-                " bytes wide");
+  if (!ok) {
+    PLACEDB_THROW_INVALID(FeatureTypeName(type), " descriptors cannot be ", descriptor_bytes,
+                          " bytes wide");
+  }
 }
 
 int Database::IndexOfId(int32_t id) const {
@@ -166,12 +171,12 @@ int Database::IndexOfId(int32_t id) const {
 }
 
 Span<cv::KeyPoint> Database::Keypoints(size_t index) const {
-  PLACEDB_CHECK(has_features_, "the database was opened as a keyframe table, without features");
+  if (!has_features_) PLACEDB_THROW_INVALID(kNoFeatures);
   return Span<cv::KeyPoint>(KeypointData() + row_offset_[index], feature_count_[index]);
 }
 
 DescriptorBlock Database::Descriptors(size_t index) const {
-  PLACEDB_CHECK(has_features_, "the database was opened as a keyframe table, without features");
+  if (!has_features_) PLACEDB_THROW_INVALID(kNoFeatures);
   DescriptorBlock block;
   block.type = feature_type_;
   block.rows = static_cast<int>(feature_count_[index]);
@@ -206,7 +211,9 @@ void Database::CopyOnWrite() {
 }
 
 void Database::AddKeyframe(Keyframe keyframe, const FeatureSet& features) {
-  PLACEDB_CHECK(has_features_, "a keyframe table (opened without features) cannot grow");
+  if (!has_features_) {
+    PLACEDB_THROW_INVALID("a keyframe table (a database opened without features) cannot grow");
+  }
   const std::string reason = CheckKeyframe(keyframe);
   if (!reason.empty()) PLACEDB_THROW_INVALID("keyframe ", keyframe.id, ": ", reason);
   if (features.type != feature_type_) {
@@ -215,30 +222,39 @@ void Database::AddKeyframe(Keyframe keyframe, const FeatureSet& features) {
                           " features");
   }
   const int rows = features.descriptors.rows;
-  PLACEDB_CHECK(rows == static_cast<int>(features.keypoints.size()),
-                "one descriptor per keypoint expected (", features.keypoints.size(), " keypoints, ",
-                rows, " rows)");
+  if (rows != static_cast<int>(features.keypoints.size())) {
+    PLACEDB_THROW_INVALID("keyframe ", keyframe.id, ": one descriptor per keypoint expected (",
+                          features.keypoints.size(), " keypoints, ", rows, " descriptor rows)");
+  }
   if (rows > 0) {
     const int row_bytes =
         static_cast<int>(features.descriptors.cols * features.descriptors.elemSize());
-    PLACEDB_CHECK(row_bytes == descriptor_bytes_, "descriptor width ", row_bytes,
-                  " differs from the database's ", descriptor_bytes_);
-    PLACEDB_CHECK(
-        features.descriptors.channels() == 1 &&
-            features.descriptors.depth() == (feature_type_ == FeatureType::kOrb ? CV_8U : CV_32F),
-        "descriptors of the wrong element type");
+    if (row_bytes != descriptor_bytes_) {
+      PLACEDB_THROW_INVALID("keyframe ", keyframe.id, ": descriptors of ", row_bytes,
+                            " bytes, the database's are ", descriptor_bytes_, " bytes");
+    }
+    if (features.descriptors.channels() != 1 ||
+        features.descriptors.depth() != (feature_type_ == FeatureType::kOrb ? CV_8U : CV_32F)) {
+      PLACEDB_THROW_INVALID("keyframe ", keyframe.id, ": ", FeatureTypeName(feature_type_),
+                            " descriptors must be ",
+                            feature_type_ == FeatureType::kOrb ? "CV_8UC1" : "CV_32FC1", " (got ",
+                            cv::typeToString(features.descriptors.type()), ")");
+    }
   }
   const std::string bad_keypoints =
       CheckKeypoints(features.keypoints.data(), features.keypoints.size(), keyframe.stored_size);
   if (!bad_keypoints.empty()) PLACEDB_THROW_INVALID("keyframe ", keyframe.id, " ", bad_keypoints);
   if (feature_type_ == FeatureType::kSurf && rows > 0) {
     for (int r = 0; r < rows; ++r) {
-      PLACEDB_CHECK(AllFinite(features.descriptors.ptr<float>(r), descriptor_bytes_ / 4),
-                    "keyframe ", keyframe.id, " has a SURF descriptor value that is not finite (row ",
-                    r, ")");
+      if (!AllFinite(features.descriptors.ptr<float>(r), descriptor_bytes_ / 4)) {
+        PLACEDB_THROW_INVALID("keyframe ", keyframe.id,
+                              " has a SURF descriptor value that is not finite (row ", r, ")");
+      }
     }
   }
-  PLACEDB_CHECK(IndexOfId(keyframe.id) < 0, "duplicate keyframe id ", keyframe.id);
+  if (IndexOfId(keyframe.id) >= 0) {
+    PLACEDB_THROW_INVALID("keyframe id ", keyframe.id, " is already in the database");
+  }
   CopyOnWrite();
   // SURF: positive Laplacian first, so the L2 kernel scans one sign's rows
   // without testing each; stable, so the order is otherwise kept.
@@ -301,7 +317,10 @@ FeatureSet Database::Features(size_t index) const {
 }
 
 Database Database::Compacted(const std::vector<char>& keep) const {
-  PLACEDB_CHECK(keep.size() == keyframes_.size(), "one flag per keyframe expected");
+  if (keep.size() != keyframes_.size()) {
+    PLACEDB_THROW_INVALID("compacting needs one keep flag per keyframe (", keep.size(), " for ",
+                          keyframes_.size(), " keyframes)");
+  }
   Database out(feature_type_, descriptor_bytes_);
   size_t kept = 0, rows = 0;
   for (size_t i = 0; i < keep.size(); ++i) {
@@ -334,10 +353,12 @@ bool Database::IsKeyframesFileName(const std::string& name) {
 }
 
 Database::SaveResult Database::Save(const std::string& dir) const {
-  PLACEDB_CHECK(has_features_, "a keyframe table (opened without features) cannot be saved");
-  if (!HostIsLittleEndian()) PLACEDB_THROW_RUNTIME("placedb databases need a little-endian host");
+  if (!has_features_) {
+    PLACEDB_THROW_INVALID("a keyframe table (a database opened without features) cannot be saved");
+  }
+  if (!HostIsLittleEndian()) PLACEDB_THROW_IO("placedb databases need a little-endian host");
   std::error_code ec;
-  PLACEDB_CHECK(fs::is_directory(dir, ec), "database directory does not exist: ", dir);
+  if (!fs::is_directory(dir, ec)) PLACEDB_THROW_NOT_FOUND("database folder not found: ", dir);
   if (!subset_.all() && fs::exists(fs::path(dir) / kManifestFile, ec)) {
     PLACEDB_THROW_INVALID("cannot save ", subset_.Describe(), " into ", dir,
                           ": it holds a database, which the subset would replace (save a subset "
@@ -498,7 +519,7 @@ void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const 
                                   const LoadOptions& options) {
   const char* b = file->data();
   const size_t size = file->size();
-  auto fail = [&](const auto&... what) { PLACEDB_THROW_RUNTIME(shown, ": ", what...); };
+  auto fail = [&](const auto&... what) { PLACEDB_THROW_CORRUPT(shown, ": ", what...); };
   // A file cut inside the magic (a prefix of it, or empty) is truncated, not
   // a different kind of file.
   if (size < sizeof(kf::kMagic) && (size == 0 || std::memcmp(b, kf::kMagic, size) == 0))
@@ -756,10 +777,12 @@ Database Database::Load(const std::string& dir, const KeyframeSubset& subset) {
 
 Database Database::Load(const std::string& dir, const LoadOptions& options) {
   PLACEDB_CHECK_OPTIONS(options.subset);
-  if (!HostIsLittleEndian()) PLACEDB_THROW_RUNTIME("placedb databases need a little-endian host");
+  if (!HostIsLittleEndian()) PLACEDB_THROW_IO("placedb databases need a little-endian host");
   std::error_code ec;
-  if (!fs::is_directory(dir, ec))
-    PLACEDB_THROW_RUNTIME("no database at ", dir, " (not a directory)");
+  if (!fs::is_directory(dir, ec)) {
+    PLACEDB_THROW_NOT_FOUND("no database at ", dir,
+                            fs::exists(dir, ec) ? " (not a directory)" : " (no such directory)");
+  }
   const std::string manifest_path = (fs::path(dir) / kManifestFile).string();
   // A rebuild may replace the files (or the whole directory) between our
   // reads: the manifest then names a file that is gone, and reading again
@@ -771,33 +794,33 @@ Database Database::Load(const std::string& dir, const LoadOptions& options) {
     if (!handle.ReadFile(kManifestFile, &text, kMaxManifestBytes)) {
       if (handle.MapFile("keyframes.bin") ||
           fs::exists(fs::path(dir) / "keyframes.writing.bin", ec)) {
-        PLACEDB_THROW_RUNTIME("database ", dir, " is incomplete: ", kManifestFile, " is missing");
+        PLACEDB_THROW_CORRUPT("database ", dir, " is incomplete: ", kManifestFile, " is missing");
       }
-      PLACEDB_THROW_RUNTIME("no database at ", dir, " (", kManifestFile, " is missing)");
+      PLACEDB_THROW_NOT_FOUND("no database at ", dir, " (", kManifestFile, " is missing)");
     }
     nlohmann::json manifest;
     try {
       manifest = nlohmann::json::parse(text);
     } catch (const nlohmann::json::exception& e) {
-      PLACEDB_THROW_RUNTIME(manifest_path, ": not valid JSON (", e.what(), ")");
+      PLACEDB_THROW_CORRUPT(manifest_path, ": not valid JSON (", e.what(), ")");
     }
     if (!manifest.is_object() || !manifest.contains("format") ||
         manifest["format"] != "placedb-database") {
-      PLACEDB_THROW_RUNTIME(manifest_path, ": not a placedb database manifest");
+      PLACEDB_THROW_CORRUPT(manifest_path, ": not a placedb database manifest");
     }
-    const JsonReader m(manifest, manifest_path, /*runtime_errors=*/true);
+    const JsonReader m(manifest, manifest_path, JsonOrigin::kDatabaseFile);
     const int64_t version = m.Integer("format_version", 0, INT32_MAX);
     if (version == 1) {
       std::string source = "its source images";
       if (manifest.contains("source") && manifest["source"].is_string())
         source = manifest["source"].get<std::string>();
-      PLACEDB_THROW_RUNTIME(
+      PLACEDB_THROW_CORRUPT(
           dir, ": database format version 1 is no longer read (this placedb reads version ",
           kDatabaseFormatVersion, "); rebuild it with `placedb build ... --out ", dir,
           " --overwrite` from ", source, " (the settings are in its manifest.json)");
     }
     if (version != kDatabaseFormatVersion) {
-      PLACEDB_THROW_RUNTIME(dir, ": database format version ", version,
+      PLACEDB_THROW_CORRUPT(dir, ": database format version ", version,
                             " is not supported (this placedb reads version ",
                             kDatabaseFormatVersion, ")");
     }
@@ -818,18 +841,18 @@ Database Database::Load(const std::string& dir, const LoadOptions& options) {
     const std::string shown = (fs::path(dir) / name).string();
     if (!file) {
       if (attempt < kAttempts) continue;  // replaced under us: read the manifest again
-      PLACEDB_THROW_RUNTIME("database ", dir, " is incomplete: ", name, " (named by ",
+      PLACEDB_THROW_CORRUPT("database ", dir, " is incomplete: ", name, " (named by ",
                             kManifestFile, ") is missing");
     }
     if (file->size() != expected_bytes) {
-      PLACEDB_THROW_RUNTIME(dir, ": ", name, " has ", file->size(), " bytes but ", kManifestFile,
+      PLACEDB_THROW_CORRUPT(dir, ": ", name, " has ", file->size(), " bytes but ", kManifestFile,
                             " records ", expected_bytes, " (corrupted database)");
     }
     Database db;
     db.DecodeKeyframeFile(file, shown, options);
     const std::string checksum = ChecksumHex(Field<uint64_t>(file->data(), kf::kChecksumOffset));
     auto disagree = [&](const char* what) {
-      PLACEDB_THROW_RUNTIME(dir, ": ", kManifestFile, " and ", name, " disagree on ", what,
+      PLACEDB_THROW_CORRUPT(dir, ": ", kManifestFile, " and ", name, " disagree on ", what,
                             " (corrupted database)");
     };
     if (checksum != expected_checksum) disagree("the file's checksum");

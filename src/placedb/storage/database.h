@@ -137,7 +137,7 @@ class Database {
   DescriptorBlock Descriptors(size_t index) const;
   size_t FeatureCount(size_t index) const { return feature_count_[index]; }
 
-  // Appends a keyframe with its features. std::invalid_argument when the
+  // Appends a keyframe with its features. InvalidArgument when the
   // keyframe is impossible (CheckKeyframe), its id is taken, or the features'
   // type, width or count disagree with the database, or a keypoint is not
   // finite or lies outside the stored image (CheckKeypoints), or a SURF
@@ -180,13 +180,14 @@ class Database {
   // cannot mix generations; a rebuild that replaces the file under a reader
   // makes it read the new generation (a few retries). Every header field,
   // offset, count, size and checksum of the file is checked before use.
-  // Errors: std::runtime_error with a clear message for a missing, truncated,
-  // corrupted, wrong-magic or wrong-version database (a version 1 database
-  // says how to rebuild it), or one whose manifest and file disagree;
-  // std::invalid_argument for a bad subset (an id that is not in the file).
-  // Saving a subset writes just that subset, and only into a folder that
-  // holds no database (std::invalid_argument otherwise: the subset would
-  // replace the whole database).
+  // Errors: NotFound when `dir` holds no database (no folder, no manifest);
+  // CorruptDatabase with a clear message for a truncated, corrupted,
+  // wrong-magic or wrong-version database (a version 1 database says how to
+  // rebuild it), one that misses a file its manifest names, or one whose
+  // manifest and file disagree; InvalidArgument for a bad subset (an id that
+  // is not in the file). Saving a subset writes just that subset, and only
+  // into a folder that holds no database (InvalidArgument otherwise: the
+  // subset would replace the whole database).
   static Database Load(const std::string& dir, const LoadOptions& options);
   static Database Load(const std::string& dir, const KeyframeSubset& subset = KeyframeSubset());
 

@@ -308,12 +308,12 @@ TEST(DatabaseTest, SubsetsOpenOnlyTheirKeyframes) {
     EXPECT_EQ(ids.IndexOfId(60), 1);
     EXPECT_EQ(ids.IndexOfId(20), -1);
     ExpectSubsetOf(whole, ids);
-    EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+    EXPECT_TRUE(ThrowsWith<InvalidArgument>(
         [&] {
           Database::Load(tmp.Path(), KeyframeSubset::Ids({10, 15}));
         },
         "keyframe id 15 is not in the database"));
-    EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+    EXPECT_TRUE(ThrowsWith<InvalidArgument>(
         [&] { Database::Load(tmp.Path(), KeyframeSubset::Partition(3, 3)); }, "part must be in"));
     // A subset saved is a database of that subset; it grows like any other.
     TempDir saved;
@@ -406,13 +406,13 @@ TEST_F(DatabaseFileTest, TruncatedKeyframesFile) {
                      size / 2, size - 5, size - 1}) {
     // As the manifest says: the size disagrees.
     WriteBytes(bin_, bytes_.substr(0, cut));
-    EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "bytes but manifest.json records"))
+    EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), "bytes but manifest.json records"))
         << "cut at " << cut;
     // With the manifest updated: the file itself says it is short.
     nlohmann::json m = manifest_;
     m["files"]["keyframes_bytes"] = cut;
     WriteManifest(m);
-    EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "truncated")) << "cut at " << cut;
+    EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), "truncated")) << "cut at " << cut;
   }
   WriteBytes(bin_, bytes_);
   WriteManifest(manifest_);
@@ -430,13 +430,13 @@ TEST_F(DatabaseFileTest, CorruptedBytesFailTheirChecksum) {
     std::string bad = bytes_;
     bad[at] = static_cast<char>(bad[at] ^ 0x10);
     WriteBytes(bin_, bad);
-    EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), what)) << "byte " << at;
+    EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), what)) << "byte " << at;
   }
   WriteBytes(bin_, bytes_ + "xyz");
   nlohmann::json m = manifest_;
   m["files"]["keyframes_bytes"] = bytes_.size() + 3;
   WriteManifest(m);
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "unexpected trailing bytes"));
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), "unexpected trailing bytes"));
 }
 
 // A keyframe table (a voter's view) reads neither keypoints nor descriptors:
@@ -453,41 +453,41 @@ TEST_F(DatabaseFileTest, KeyframeTableSkipsTheFeatures) {
   EXPECT_EQ(db.keyframe(0).id, 10);
   EXPECT_TRUE(db.keyframe(0).pose.has_value());
   EXPECT_EQ(db.FeatureCount(0), db_->FeatureCount(0));
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { db.Descriptors(0); }, "keyframe table"));
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { db.Keypoints(0); }, "keyframe table"));
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "descriptor section checksum mismatch"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.Descriptors(0); }, "keyframe table"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.Keypoints(0); }, "keyframe table"));
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), "descriptor section checksum mismatch"));
 }
 
 TEST_F(DatabaseFileTest, WrongVersions) {
   std::string bad = bytes_;
   Put<uint32_t>(&bad, 8, kDatabaseFormatVersion + 1);
   WriteResealed(bad);
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>(
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>(
       LoadFn(),
       "format version " + std::to_string(kDatabaseFormatVersion + 1) + " is not supported"));
   WriteBytes(bin_, bytes_);
   nlohmann::json m = manifest_;
   m["format_version"] = kDatabaseFormatVersion + 1;
   WriteManifest(m);
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>(
-      LoadFn(), "database format version " + std::to_string(kDatabaseFormatVersion + 1) +
-                    " is not supported"));
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), "database format version " +
+                                                        std::to_string(kDatabaseFormatVersion + 1) +
+                                                        " is not supported"));
   // A version 1 database says how to rebuild it.
   m["format_version"] = 1;
   m["source"] = "images:/data/loop [1..40]";
   WriteManifest(m);
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>(
-      LoadFn(), {"format version 1 is no longer read", "placedb build", "--overwrite",
-                 "images:/data/loop [1..40]"}));
+  EXPECT_TRUE(
+      ThrowsWith<CorruptDatabase>(LoadFn(), {"format version 1 is no longer read", "placedb build",
+                                             "--overwrite", "images:/data/loop [1..40]"}));
 }
 
 TEST_F(DatabaseFileTest, WrongMagic) {
   std::string bad = bytes_;
   bad[0] = 'X';
   WriteBytes(bin_, bad);
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "wrong magic"));
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), "wrong magic"));
   WriteResealed("this is a text file, not a database\n");
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "wrong magic"));
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), "wrong magic"));
 }
 
 // Every field the manifest records of the keyframe file is checked against it.
@@ -496,7 +496,7 @@ TEST_F(DatabaseFileTest, ManifestMustAgreeWithTheKeyframeFile) {
     nlohmann::json m = manifest_;
     edit(m);
     WriteManifest(m);
-    return ThrowsWith<std::runtime_error>(LoadFn(), part);
+    return ThrowsWith<CorruptDatabase>(LoadFn(), part);
   };
   EXPECT_TRUE(
       fails([](nlohmann::json& m) { m["feature_type"] = "surf"; }, "disagree on the feature type"));
@@ -525,24 +525,52 @@ TEST_F(DatabaseFileTest, ManifestMustAgreeWithTheKeyframeFile) {
 
 TEST_F(DatabaseFileTest, MissingFiles) {
   fs::remove(bin_);
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), {name_, "is missing"}));
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), {name_, "is missing"}));
   fs::remove(Dir() + "/manifest.json");
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "manifest.json is missing"));
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { Database::Load(Dir() + "/nothing_here"); },
-                                             "(not a directory)"));
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { Database::Load(Dir() + "/manifest.json"); },
-                                             "(not a directory)"));
+  // The keyframe file and the manifest are gone: no database there at all.
+  EXPECT_TRUE(ThrowsWith<NotFound>(LoadFn(), {"no database at", "manifest.json is missing"}));
+  EXPECT_TRUE(ThrowsWith<NotFound>([&] { Database::Load(Dir() + "/nothing_here"); },
+                                   {"no database at", "(no such directory)"}));
+  WriteBytes(Dir() + "/a_file", "x");
+  EXPECT_TRUE(
+      ThrowsWith<NotFound>([&] { Database::Load(Dir() + "/a_file"); }, "(not a directory)"));
+}
+
+// The kind of each error, which decides the CLI's exit code and the Python
+// exception: no database is NotFound, a damaged one CorruptDatabase, a save
+// the system refuses IoError, a bad argument InvalidArgument. Messages name
+// the path but never a source file.
+TEST_F(DatabaseFileTest, ErrorKinds) {
+  EXPECT_THROW(Database::Load(Dir() + "/missing"), NotFound);
+  std::string flipped = bytes_;
+  flipped[flipped.size() / 2] ^= 0x01;
+  WriteBytes(bin_, flipped);
+  try {
+    Database::Load(Dir());
+    ADD_FAILURE() << "a flipped byte loaded";
+  } catch (const CorruptDatabase& e) {
+    EXPECT_NE(std::string(e.what()).find(name_), std::string::npos) << e.what();
+    EXPECT_EQ(std::string(e.what()).find(".cc:"), std::string::npos) << e.what();
+    EXPECT_EQ(e.where().rfind("storage/", 0), 0u) << e.where();
+  }
+  WriteBytes(bin_, bytes_);
+  // /proc takes no new files, even from root.
+  EXPECT_THROW(db_->Save("/proc"), IoError);
+  // A file where the database folder should be: no database there.
+  EXPECT_THROW(db_->Save(bin_), NotFound);
+  EXPECT_THROW(Database::Load(Dir(), KeyframeSubset::Partition(3, 2)), InvalidArgument);
+  EXPECT_EQ(Database::Load(Dir()).size(), 3u);
 }
 
 TEST_F(DatabaseFileTest, ManifestNotJson) {
   WriteBytes(Dir() + "/manifest.json", "{ not json");
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "not valid JSON"));
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), "not valid JSON"));
   WriteBytes(Dir() + "/manifest.json", "{\"format\": \"something-else\"}");
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "not a placedb database manifest"));
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), "not a placedb database manifest"));
   WriteBytes(Dir() + "/manifest.json", "[1, 2, 3]");
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "not a placedb database manifest"));
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), "not a placedb database manifest"));
   WriteBytes(Dir() + "/manifest.json", std::string("\x89PNG\r\n\x1a\n\0\0", 10));
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "not valid JSON"));
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), "not valid JSON"));
   WriteManifest(manifest_);
   EXPECT_EQ(Database::Load(Dir()).size(), 3u);
 }
@@ -617,7 +645,7 @@ TEST_F(DatabaseFileTest, ImpossibleValuesWithValidChecksums) {
     std::string bad = bytes_;
     c.edit(&bad);
     WriteResealed(bad);
-    EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), c.what)) << c.what;
+    EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), c.what)) << c.what;
   }
   WriteResealed(bytes_);
   EXPECT_EQ(Database::Load(Dir()).size(), 3u);
@@ -628,8 +656,8 @@ TEST_F(DatabaseFileTest, ImpossibleValuesWithValidChecksums) {
 // each resealed so the checksums pass and the parser itself is tested, and
 // 1 000 damaged manifests. Each either loads (the damage hit a descriptor
 // bit or a value that is still possible), and then answers a query, or fails
-// with std::runtime_error / std::invalid_argument; never a crash, a hang or
-// (under the sanitizers) a bad read.
+// with CorruptDatabase (never another kind: damage is never a bug nor the
+// caller's fault); never a crash, a hang or (under the sanitizers) a bad read.
 TEST_F(DatabaseFileTest, MutatedFilesNeverCrash) {
   std::mt19937_64 rng(20261201);
   const FeatureSet query =
@@ -646,9 +674,7 @@ TEST_F(DatabaseFileTest, MutatedFilesNeverCrash) {
         for (const cv::KeyPoint& kp : db.Keypoints(i)) ASSERT_TRUE(std::isfinite(kp.pt.x));
       }
       ++loaded;
-    } catch (const std::runtime_error&) {
-      ++rejected;
-    } catch (const std::invalid_argument&) {
+    } catch (const CorruptDatabase&) {
       ++rejected;
     }
   };
@@ -857,15 +883,15 @@ TEST(DatabaseTest, AddingSurfFeaturesToOrbDatabaseThrows) {
   ASSERT_FALSE(features.empty());
   Keyframe k;
   k.id = 99;
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { db.AddKeyframe(k, features); },
-                                                "cannot add surf features to a database of orb"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.AddKeyframe(k, features); },
+                                          "cannot add surf features to a database of orb"));
   EXPECT_EQ(db.size(), 1u);  // unchanged
   // A SURF database refuses ORB features the same way.
   Database surf_db(FeatureType::kSurf, 256);
   const FeatureSet orb =
       FeatureExtractor::Create(ExtractorOptions())->Extract(cv::imread(RtabmapImage(5)));
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { surf_db.AddKeyframe(k, orb); },
-                                                "cannot add orb features to a database of surf"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { surf_db.AddKeyframe(k, orb); },
+                                          "cannot add orb features to a database of surf"));
   EXPECT_TRUE(surf_db.empty());
 }
 
@@ -876,8 +902,8 @@ TEST(DatabaseTest, DuplicateKeyframeIdThrows) {
       FeatureExtractor::Create(ExtractorOptions())->Extract(cv::imread(RtabmapImage(7)));
   Keyframe k;
   k.id = 20;
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { db.AddKeyframe(k, set); },
-                                                "duplicate keyframe id 20"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.AddKeyframe(k, set); },
+                                          "keyframe id 20 is already in the database"));
   EXPECT_EQ(db.size(), 2u);
   EXPECT_EQ(db.num_features(), features);
   k.id = 21;
@@ -965,8 +991,8 @@ TEST_F(DatabaseFileTest, StoredImageNamesStayInsideTheDatabase) {
     std::string bad = bytes_;
     ASSERT_TRUE(SetStrings(&bad, 0, source, name));
     WriteResealed(bad);
-    EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), {"keyframe record 0 (id 10)",
-                                                          "stored image name"}))
+    EXPECT_TRUE(
+        ThrowsWith<CorruptDatabase>(LoadFn(), {"keyframe record 0 (id 10)", "stored image name"}))
         << EscapeForTerminal(name);
   }
   // Plain names load; so does a keyframe without a stored image.
@@ -980,7 +1006,7 @@ TEST_F(DatabaseFileTest, StoredImageNamesStayInsideTheDatabase) {
   std::string nul = bytes_;
   ASSERT_TRUE(SetStrings(&nul, 0, std::string("/data/a\0b.png", 13), "images/1.png"));
   WriteResealed(nul);
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "source path holds a NUL byte"));
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), "source path holds a NUL byte"));
 }
 
 // Source paths are the user's bytes: not UTF-8, control characters, they
@@ -1012,14 +1038,14 @@ TEST_F(DatabaseFileTest, KeypointsLieInsideTheStoredImage) {
     std::string bad = bytes_;
     PutAt<float>(&bad, at, value);
     WriteResealed(bad);
-    EXPECT_TRUE(ThrowsWith<std::runtime_error>(
+    EXPECT_TRUE(ThrowsWith<CorruptDatabase>(
         LoadFn(), {"keyframe 10 has a keypoint outside its stored image (160x120)"}))
         << value;
   }
   std::string bad = bytes_;
   PutAt<float>(&bad, kp, -inf);
   WriteResealed(bad);
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "keypoint that is not finite"));
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), "keypoint that is not finite"));
   // On the border and within the tolerance of a pixel: loads.
   for (const auto& [at, value] : std::vector<std::pair<size_t, float>>{
            {kp, 0.0f}, {kp, -1.0f}, {kp, 160.0f}, {kp, 161.0f}, {kp + 4, 121.0f}}) {
@@ -1037,7 +1063,7 @@ TEST_F(DatabaseFileTest, KeypointsLieInsideTheStoredImage) {
   EXPECT_EQ(Database::Load(Dir()).size(), 3u);
   PutAt<float>(&unknown, kp, 2e6f);
   WriteResealed(unknown);
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>(LoadFn(), "largest possible image"));
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), "largest possible image"));
 }
 
 ExtractorOptions SmallSurf() {
@@ -1063,8 +1089,8 @@ TEST(DatabaseRowsTest, NonFiniteSurfRowsAreRefused) {
     std::string bad = bytes;
     PutAt<float>(&bad, at, value);
     WriteResealedDatabase(tmp.Path(), name, manifest, bad);
-    EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { Database::Load(tmp.Path()); },
-                                               "has a SURF descriptor value that is not finite"));
+    EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { Database::Load(tmp.Path()); },
+                                            "has a SURF descriptor value that is not finite"));
   }
   // A subset that leaves the damaged keyframe out opens; the checksum still
   // covers every row.
@@ -1074,8 +1100,8 @@ TEST(DatabaseRowsTest, NonFiniteSurfRowsAreRefused) {
   EXPECT_EQ(Database::Load(tmp.Path(), KeyframeSubset::Ids({10})).size(), 1u);
   bad[second + 100] ^= 1;
   WriteBytes(tmp.Path(name), bad);
-  EXPECT_TRUE(ThrowsWith<std::runtime_error>([&] { Database::Load(tmp.Path()); },
-                                             "descriptor section checksum mismatch"));
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { Database::Load(tmp.Path()); },
+                                          "descriptor section checksum mismatch"));
   // Large but finite values are data.
   std::string big = bytes;
   PutAt<float>(&big, rows, 3e38f);
@@ -1093,34 +1119,34 @@ TEST(DatabaseRowsTest, AddedAndQueryFeaturesAreChecked) {
   k.id = 77;
   for (const std::string& name : {"../victim.png", "/tmp/x.png", "images/a/b.png"}) {
     k.image_file = name;
-    EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { db.AddKeyframe(k, features); },
-                                                  "stored image name"))
+    EXPECT_TRUE(
+        ThrowsWith<InvalidArgument>([&] { db.AddKeyframe(k, features); }, "stored image name"))
         << name;
   }
   k.image_file = "images/000077.png";
   FeatureSet outside = features;
   outside.keypoints[2].pt.x = -5.0f;
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { db.AddKeyframe(k, outside); },
-                                                "keypoint outside its stored image"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.AddKeyframe(k, outside); },
+                                          "keypoint outside its stored image"));
   outside.keypoints[2].pt = {1e30f, 3.0f};
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { db.AddKeyframe(k, outside); },
-                                                "keypoint outside its stored image"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.AddKeyframe(k, outside); },
+                                          "keypoint outside its stored image"));
   FeatureSet nan_row = features;
   nan_row.descriptors = features.descriptors.clone();
   nan_row.descriptors.at<float>(1, 5) = std::nanf("");
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { db.AddKeyframe(k, nan_row); },
-                                                "SURF descriptor value that is not finite"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.AddKeyframe(k, nan_row); },
+                                          "SURF descriptor value that is not finite"));
   EXPECT_EQ(db.size(), 1u);
   db.AddKeyframe(k, features);
   EXPECT_EQ(db.size(), 2u);
 
   // A query's features: no image size to hold them to but the largest.
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ValidateQueryFeatures(nan_row, db); },
-                                                "SURF descriptor value that is not finite"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { ValidateQueryFeatures(nan_row, db); },
+                                          "SURF descriptor value that is not finite"));
   FeatureSet far = features;
   far.keypoints[0].pt.y = 1e30f;
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>([&] { ValidateQueryFeatures(far, db); },
-                                                "largest possible image"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { ValidateQueryFeatures(far, db); },
+                                          "largest possible image"));
   ValidateQueryFeatures(features, db);
 }
 
@@ -1129,7 +1155,7 @@ TEST(DatabaseRowsTest, AddedAndQueryFeaturesAreChecked) {
 // What loads must hold to the rules (names inside images/, strings that
 // print and dump safely, keypoints within a pixel of the stored image,
 // finite rows); what breaks them must be refused, with
-// std::runtime_error.
+// CorruptDatabase.
 TEST_F(DatabaseFileTest, MutatedNamesStringsKeypointsAndRows) {
   std::mt19937_64 rng(20261717);
   const FileLayout f(bytes_);
@@ -1157,7 +1183,7 @@ TEST_F(DatabaseFileTest, MutatedNamesStringsKeypointsAndRows) {
         EXPECT_TRUE(InsideImages(Dir(), kf.image_file)) << EscapeForTerminal(kf.image_file);
         for (const char c : kf.image_file) EXPECT_TRUE(c > 0x20 && c < 0x7f) << int{c};
       }
-    } catch (const std::runtime_error& e) {
+    } catch (const CorruptDatabase& e) {
       ++names_refused;
       EXPECT_FALSE(InsideImages(Dir(), name) && IsPlainFileName(name.substr(7)) &&
                    name.compare(0, 7, "images/") == 0)
@@ -1205,7 +1231,7 @@ TEST_F(DatabaseFileTest, MutatedNamesStringsKeypointsAndRows) {
       Database::Load(Dir());
       ++kp_loaded;
       EXPECT_TRUE(possible) << value;
-    } catch (const std::runtime_error& e) {
+    } catch (const CorruptDatabase& e) {
       ++kp_refused;
       EXPECT_FALSE(possible) << value << ": " << e.what();
     }
@@ -1237,7 +1263,7 @@ TEST(DatabaseRowsTest, MutatedSurfRows) {
       Database::Load(tmp.Path());
       ++loaded;
       EXPECT_TRUE(std::isfinite(value)) << bits;
-    } catch (const std::runtime_error& e) {
+    } catch (const CorruptDatabase& e) {
       ++refused;
       EXPECT_FALSE(std::isfinite(value)) << e.what();
     }

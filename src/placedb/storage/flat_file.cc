@@ -95,7 +95,7 @@ void CheckPayloadChecksum(const Image& image, const std::string& shown) {
   std::memcpy(&common, image.data, sizeof(common));
   if (Checksum64(image.data + kHeaderBytes, static_cast<size_t>(image.size - kHeaderBytes)) !=
       common.payload_checksum) {
-    PLACEDB_THROW_RUNTIME(shown, ": payload checksum mismatch (the file is corrupted)");
+    PLACEDB_THROW_CORRUPT(shown, ": payload checksum mismatch (the file is corrupted)");
   }
 }
 
@@ -103,7 +103,7 @@ void CheckSealedHeader(const Image& image, const char (&magic)[8], uint32_t vers
                        const char* kind, const std::string& shown) {
   const char* b = image.data;
   const uint64_t size = image.size;
-  auto fail = [&](const auto&... what) { PLACEDB_THROW_RUNTIME(shown, ": ", what...); };
+  auto fail = [&](const auto&... what) { PLACEDB_THROW_CORRUPT(shown, ": ", what...); };
   // A file cut inside the magic (a prefix of it, or empty) is truncated, not
   // a different kind of file.
   if (size < sizeof(magic) && (size == 0 || std::memcmp(b, magic, size) == 0))

@@ -117,7 +117,7 @@ std::string Patched(std::string bytes, uint64_t offset, const T& value) {
 // Checks what Seal wrote, before anything else is read: magic (a wrong one
 // says "not a placedb <kind> file"), version, header size, file size
 // (truncated or trailing bytes) and both checksums. Throws
-// std::runtime_error "<shown>: <what is wrong>".
+// CorruptDatabase "<shown>: <what is wrong>".
 void CheckSealed(const Image& image, const char (&magic)[8], uint32_t version, const char* kind,
                  const std::string& shown);
 // CheckSealed in two parts, for a caller that checks the payload's

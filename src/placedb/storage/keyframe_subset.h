@@ -15,7 +15,7 @@ enum class PartitionScheme {
   kInterleaved,  // partition i of N holds the indices with index % N == i
 };
 const char* PartitionSchemeName(PartitionScheme scheme);
-// "contiguous" / "interleaved"; throws std::invalid_argument.
+// "contiguous" / "interleaved"; throws InvalidArgument.
 PartitionScheme ParsePartitionScheme(const std::string& name);
 
 struct KeyframeSubset {
@@ -41,7 +41,7 @@ struct KeyframeSubset {
 
 // The indices (in file order, ascending) that `subset` keeps of `n`
 // keyframes; kIds needs the file's ids, `ids_in_file_order` (size n), and
-// throws std::invalid_argument naming an id that is not there.
+// throws InvalidArgument naming an id that is not there.
 std::vector<size_t> SelectKeyframes(const KeyframeSubset& subset, size_t n,
                                     const std::vector<int32_t>& ids_in_file_order);
 

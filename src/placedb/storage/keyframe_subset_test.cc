@@ -48,7 +48,7 @@ TEST(KeyframeSubsetTest, IdsSelectTheirIndicesSortedAndUnique) {
   const std::vector<int32_t> ids = {10, 20, 30, 40};
   EXPECT_EQ(SelectKeyframes(KeyframeSubset::Ids({40, 10, 40}), 4, ids),
             (std::vector<size_t>{0, 3}));
-  EXPECT_TRUE(ThrowsWith<std::invalid_argument>(
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
       [&] {
         SelectKeyframes(KeyframeSubset::Ids({20, 25}), 4, ids);
       },
@@ -68,7 +68,7 @@ TEST(KeyframeSubsetTest, CheckAndDescribe) {
   EXPECT_EQ(KeyframeSubset::Ids({1, 2}).Describe(), "2 ids");
   EXPECT_EQ(ParsePartitionScheme("interleaved"), PartitionScheme::kInterleaved);
   EXPECT_EQ(PartitionSchemeName(PartitionScheme::kContiguous), std::string("contiguous"));
-  EXPECT_THROW(ParsePartitionScheme("random"), std::invalid_argument);
+  EXPECT_THROW(ParsePartitionScheme("random"), InvalidArgument);
 }
 
 }  // namespace

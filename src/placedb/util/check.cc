@@ -5,10 +5,11 @@
 namespace placedb {
 namespace internal {
 
-std::string FormatCheckMessage(const char* file, int line, const std::string& message) {
+std::string SourceLocation(const char* file, int line) {
   // Keep the path from "placedb/" on: short and still unambiguous.
-  const char* shown = std::strstr(file, "placedb/");
-  return std::string(shown != nullptr ? shown : file) + ":" + std::to_string(line) + ": " + message;
+  const char* shown = std::strstr(file, "src/placedb/");
+  shown = shown != nullptr ? shown + std::strlen("src/placedb/") : file;
+  return std::string(shown) + ":" + std::to_string(line);
 }
 
 }  // namespace internal

@@ -11,21 +11,44 @@
 #include <atomic>
 #include <cerrno>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
+#include <cstring>
 
 #include "placedb/util/mapped_file.h"
 
 namespace placedb {
 namespace fs = std::filesystem;
 
+namespace internal {
+
+void ThrowReadError(int err, const std::string& message, std::string where) {
+  const std::string text = message + ": " + std::strerror(err);
+  if (err == ENOENT || err == ENOTDIR) throw NotFound(text, std::move(where));
+  throw IoError(text, std::move(where));
+}
+
+}  // namespace internal
+
 std::string ReadFileToString(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) PLACEDB_THROW_RUNTIME("cannot open ", path, ": ", std::strerror(errno));
-  std::ostringstream out;
-  out << in.rdbuf();
-  if (in.bad()) PLACEDB_THROW_RUNTIME("error reading ", path);
-  return out.str();
+  // POSIX calls rather than a stream: their errno tells a missing file
+  // (NotFound) from an unreadable one (IoError).
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) PLACEDB_THROW_READ_ERROR(errno, "cannot open ", path);
+  std::string out;
+  char buf[65536];
+  for (;;) {
+    const ssize_t n = ::read(fd, buf, sizeof(buf));
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      const int err = errno;
+      ::close(fd);
+      if (err == EISDIR) PLACEDB_THROW_INVALID(path, " is a directory, not a file");
+      PLACEDB_THROW_IO("cannot read ", path, ": ", std::strerror(err));
+    }
+    if (n == 0) break;
+    out.append(buf, static_cast<size_t>(n));
+  }
+  ::close(fd);
+  return out;
 }
 
 namespace {
@@ -53,7 +76,7 @@ PathKind KindOfPath(const std::string& path) {
   struct stat st;
   if (::lstat(path.c_str(), &st) != 0) {
     if (errno == ENOENT) return PathKind::kNew;
-    PLACEDB_THROW_RUNTIME("cannot write ", path, ": ", std::strerror(errno));
+    PLACEDB_THROW_IO("cannot write ", path, ": ", std::strerror(errno));
   }
   if (S_ISREG(st.st_mode)) return PathKind::kRegular;
   if (S_ISDIR(st.st_mode)) return PathKind::kDirectory;
@@ -68,14 +91,14 @@ void WriteStream(const std::string& path, const std::string& data) {
   // A symlink to a regular file is overwritten through the link.
   if (::stat(path.c_str(), &target) == 0 && S_ISREG(target.st_mode)) flags |= O_TRUNC;
   const int fd = ::open(path.c_str(), flags);
-  if (fd < 0) PLACEDB_THROW_RUNTIME("cannot write ", path, ": ", std::strerror(errno));
+  if (fd < 0) PLACEDB_THROW_IO("cannot write ", path, ": ", std::strerror(errno));
   if (!WriteAll(fd, data.data(), data.size())) {
     const int err = errno;
     ::close(fd);
-    PLACEDB_THROW_RUNTIME("cannot write ", path, ": ", std::strerror(err));
+    PLACEDB_THROW_IO("cannot write ", path, ": ", std::strerror(err));
   }
   if (::close(fd) != 0 && errno != EINTR) {
-    PLACEDB_THROW_RUNTIME("cannot write ", path, ": ", std::strerror(errno));
+    PLACEDB_THROW_IO("cannot write ", path, ": ", std::strerror(errno));
   }
 }
 
@@ -85,7 +108,7 @@ std::atomic<uint64_t> temp_counter{0};
 
 void SyncDirectory(const std::string& dir) {
   const int fd = ::open(dir.empty() ? "." : dir.c_str(), O_RDONLY | O_DIRECTORY);
-  if (fd < 0) PLACEDB_THROW_RUNTIME("cannot open directory ", dir, ": ", std::strerror(errno));
+  if (fd < 0) PLACEDB_THROW_IO("cannot open directory ", dir, ": ", std::strerror(errno));
   ::fsync(fd);
   ::close(fd);
 }
@@ -140,31 +163,31 @@ void WriteFileAtomic(const std::string& path, const std::string& data) {
       WriteStream(path, data);
       return;
     case PathKind::kDirectory:
-      PLACEDB_THROW_RUNTIME("cannot write ", path, ": it is a directory");
+      PLACEDB_THROW_INVALID("cannot write ", path, ": it is a directory");
     case PathKind::kNew:
     case PathKind::kRegular:
       break;
   }
   const std::string tmp = TempPathFor(path);
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
-  if (fd < 0) PLACEDB_THROW_RUNTIME("cannot create ", tmp, ": ", std::strerror(errno));
+  if (fd < 0) PLACEDB_THROW_IO("cannot create ", tmp, ": ", std::strerror(errno));
   auto fail = [&](const char* what) {
     const int err = errno;
     ::close(fd);
     ::unlink(tmp.c_str());
-    PLACEDB_THROW_RUNTIME("cannot ", what, " ", tmp, ": ", std::strerror(err));
+    PLACEDB_THROW_IO("cannot ", what, " ", tmp, ": ", std::strerror(err));
   };
   if (!WriteAll(fd, data.data(), data.size())) fail("write");
   if (::fsync(fd) != 0) fail("fsync");
   if (::close(fd) != 0 && errno != EINTR) {
     const int err = errno;
     ::unlink(tmp.c_str());
-    PLACEDB_THROW_RUNTIME("cannot write ", tmp, ": ", std::strerror(err));
+    PLACEDB_THROW_IO("cannot write ", tmp, ": ", std::strerror(err));
   }
   if (::rename(tmp.c_str(), path.c_str()) != 0) {
     const int err = errno;
     ::unlink(tmp.c_str());
-    PLACEDB_THROW_RUNTIME("cannot rename ", tmp, " to ", path, ": ", std::strerror(err));
+    PLACEDB_THROW_IO("cannot rename ", tmp, " to ", path, ": ", std::strerror(err));
   }
   SyncDirectory(fs::path(path).parent_path().string());
 }
@@ -172,11 +195,11 @@ void WriteFileAtomic(const std::string& path, const std::string& data) {
 AtomicFileWriter::AtomicFileWriter(std::string path) : path_(std::move(path)) {
   const PathKind kind = KindOfPath(path_);
   if (kind == PathKind::kDirectory || kind == PathKind::kSpecial) {
-    PLACEDB_THROW_RUNTIME("cannot write ", path_, ": not a regular file (write to a file path)");
+    PLACEDB_THROW_INVALID("cannot write ", path_, ": not a regular file (write to a file path)");
   }
   tmp_ = TempPathFor(path_);
   fd_ = ::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
-  if (fd_ < 0) PLACEDB_THROW_RUNTIME("cannot create ", tmp_, ": ", std::strerror(errno));
+  if (fd_ < 0) PLACEDB_THROW_IO("cannot create ", tmp_, ": ", std::strerror(errno));
 }
 
 AtomicFileWriter::~AtomicFileWriter() {
@@ -191,7 +214,7 @@ void AtomicFileWriter::Flush() {
     const ssize_t n = ::write(fd_, buffer_.data() + written, buffer_.size() - written);
     if (n < 0) {
       if (errno == EINTR) continue;
-      PLACEDB_THROW_RUNTIME("cannot write ", tmp_, ": ", std::strerror(errno));
+      PLACEDB_THROW_IO("cannot write ", tmp_, ": ", std::strerror(errno));
     }
     written += static_cast<size_t>(n);
   }
@@ -227,7 +250,7 @@ void AtomicFileWriter::WriteAt(uint64_t offset, const void* data, size_t size) {
                                static_cast<off_t>(offset + done));
     if (n < 0) {
       if (errno == EINTR) continue;
-      PLACEDB_THROW_RUNTIME("cannot write ", tmp_, ": ", std::strerror(errno));
+      PLACEDB_THROW_IO("cannot write ", tmp_, ": ", std::strerror(errno));
     }
     done += static_cast<size_t>(n);
   }
@@ -236,7 +259,7 @@ void AtomicFileWriter::WriteAt(uint64_t offset, const void* data, size_t size) {
 void AtomicFileWriter::CommitAs(const std::string& path) {
   const PathKind kind = KindOfPath(path);
   if (kind == PathKind::kDirectory || kind == PathKind::kSpecial) {
-    PLACEDB_THROW_RUNTIME("cannot write ", path, ": not a regular file");
+    PLACEDB_THROW_INVALID("cannot write ", path, ": not a regular file");
   }
   path_ = path;
   Commit();
@@ -244,11 +267,11 @@ void AtomicFileWriter::CommitAs(const std::string& path) {
 
 void AtomicFileWriter::Commit() {
   Flush();
-  if (::fsync(fd_) != 0) PLACEDB_THROW_RUNTIME("cannot fsync ", tmp_, ": ", std::strerror(errno));
+  if (::fsync(fd_) != 0) PLACEDB_THROW_IO("cannot fsync ", tmp_, ": ", std::strerror(errno));
   ::close(fd_);
   fd_ = -1;
   if (::rename(tmp_.c_str(), path_.c_str()) != 0) {
-    PLACEDB_THROW_RUNTIME("cannot rename ", tmp_, " to ", path_, ": ", std::strerror(errno));
+    PLACEDB_THROW_IO("cannot rename ", tmp_, " to ", path_, ": ", std::strerror(errno));
   }
   committed_ = true;
   SyncDirectory(fs::path(path_).parent_path().string());
@@ -256,7 +279,7 @@ void AtomicFileWriter::Commit() {
 
 DirectoryHandle::DirectoryHandle(const std::string& path) : path_(path) {
   fd_ = ::open(path.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd_ < 0) PLACEDB_THROW_RUNTIME("cannot open directory ", path, ": ", std::strerror(errno));
+  if (fd_ < 0) PLACEDB_THROW_READ_ERROR(errno, "cannot open directory ", path);
 }
 
 DirectoryHandle::~DirectoryHandle() {
@@ -268,7 +291,7 @@ bool DirectoryHandle::ReadFile(const std::string& name, std::string* out, size_t
   const int fd = ::openat(fd_, name.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) {
     if (errno == ENOENT) return false;
-    PLACEDB_THROW_RUNTIME("cannot open ", shown, ": ", std::strerror(errno));
+    PLACEDB_THROW_IO("cannot open ", shown, ": ", std::strerror(errno));
   }
   out->clear();
   char buf[65536];
@@ -278,12 +301,12 @@ bool DirectoryHandle::ReadFile(const std::string& name, std::string* out, size_t
       if (errno == EINTR) continue;
       const int err = errno;
       ::close(fd);
-      PLACEDB_THROW_RUNTIME("cannot read ", shown, ": ", std::strerror(err));
+      PLACEDB_THROW_IO("cannot read ", shown, ": ", std::strerror(err));
     }
     if (n == 0) break;
     if (out->size() + static_cast<size_t>(n) > max_bytes) {
       ::close(fd);
-      PLACEDB_THROW_RUNTIME(shown, " is larger than ", max_bytes, " bytes");
+      PLACEDB_THROW_CORRUPT(shown, " is larger than ", max_bytes, " bytes");
     }
     out->append(buf, static_cast<size_t>(n));
   }
@@ -296,9 +319,14 @@ std::shared_ptr<const MappedFile> DirectoryHandle::MapFile(const std::string& na
   const int fd = ::openat(fd_, name.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) {
     if (errno == ENOENT) return nullptr;
-    PLACEDB_THROW_RUNTIME("cannot open ", shown, ": ", std::strerror(errno));
+    PLACEDB_THROW_IO("cannot open ", shown, ": ", std::strerror(errno));
   }
   try {
+    struct stat st;
+    if (::fstat(fd, &st) != 0) PLACEDB_THROW_IO("cannot stat ", shown, ": ", std::strerror(errno));
+    // The manifest names this file: anything but a regular file there is a
+    // damaged database, not a wrong argument.
+    if (!S_ISREG(st.st_mode)) PLACEDB_THROW_CORRUPT(shown, " is not a regular file");
     auto file = MappedFile::FromFd(fd, shown);
     ::close(fd);
     return file;
@@ -310,7 +338,7 @@ std::shared_ptr<const MappedFile> DirectoryHandle::MapFile(const std::string& na
 
 std::unique_ptr<DirectoryLock> DirectoryLock::TryLock(const std::string& dir) {
   const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd < 0) PLACEDB_THROW_RUNTIME("cannot open directory ", dir, ": ", std::strerror(errno));
+  if (fd < 0) PLACEDB_THROW_READ_ERROR(errno, "cannot open directory ", dir);
   int rc;
   do {
     rc = ::flock(fd, LOCK_EX | LOCK_NB);
@@ -319,7 +347,7 @@ std::unique_ptr<DirectoryLock> DirectoryLock::TryLock(const std::string& dir) {
     const int err = errno;
     ::close(fd);
     if (err == EWOULDBLOCK) return nullptr;
-    PLACEDB_THROW_RUNTIME("cannot lock directory ", dir, ": ", std::strerror(err));
+    PLACEDB_THROW_IO("cannot lock directory ", dir, ": ", std::strerror(err));
   }
   return std::unique_ptr<DirectoryLock>(new DirectoryLock(fd));
 }

@@ -13,16 +13,33 @@
 
 namespace placedb {
 
-// Reads a whole file; throws std::runtime_error naming the path on failure.
+// Reads a whole file. Throws NotFound when nothing is at `path`,
+// InvalidArgument when it is a directory, IoError when it cannot be read.
 std::string ReadFileToString(const std::string& path);
+
+namespace internal {
+// Throws the error of a system call that failed with `err` on an input path:
+// NotFound when nothing is there (ENOENT, ENOTDIR: a path through a file),
+// else IoError (permissions, a failing device). `message` is followed by
+// ": <strerror>".
+[[noreturn]] void ThrowReadError(int err, const std::string& message, std::string where);
+}  // namespace internal
+
+// An input file or folder could not be opened or read (errno `err`): NotFound
+// or IoError (internal::ThrowReadError). An output that cannot be written is
+// always PLACEDB_THROW_IO: a missing parent folder is a failed write, not a
+// missing input.
+#define PLACEDB_THROW_READ_ERROR(err, ...)                                                  \
+  ::placedb::internal::ThrowReadError((err), ::placedb::internal::JoinMessage(__VA_ARGS__), \
+                                      ::placedb::internal::SourceLocation(__FILE__, __LINE__))
 
 // Writes `data` to `path` so that a crash leaves either the old file or the new
 // one, never a torn file: write to a temporary sibling (TempPathFor), fsync,
 // rename, fsync the directory. The temporary file is removed on any error.
 // Only a regular file (or a new path) is replaced: a path that is a symlink,
 // a character device, a FIFO or a socket (`/dev/stdout`, `/dev/fd/1`, a named
-// pipe) is opened and written as a stream, never replaced; a directory is an
-// error. Errors throw std::runtime_error naming the path.
+// pipe) is opened and written as a stream, never replaced; a directory is
+// InvalidArgument. A failed write throws IoError naming the path.
 void WriteFileAtomic(const std::string& path, const std::string& data);
 
 // fsyncs a directory so that renames inside it are durable.
@@ -50,9 +67,9 @@ size_t SweepTempFiles(const std::string& dir);
 // moved to `path` by Commit (fsync, rename, fsync of the directory): a crash
 // leaves the old file or the new one, never a torn one. Destroyed uncommitted
 // (an error, an exception), it removes the temporary file. `path` must be a
-// regular file or a new path (anything else is std::runtime_error: this
-// writer fills its header in last, which a stream cannot take). Not
-// thread-safe.
+// regular file or a new path (anything else is InvalidArgument: this writer
+// fills its header in last, which a stream cannot take); a failed write is
+// IoError. Not thread-safe.
 class AtomicFileWriter {
  public:
   explicit AtomicFileWriter(std::string path);
@@ -87,7 +104,8 @@ class MappedFile;
 // directory even if its path is renamed or replaced meanwhile.
 class DirectoryHandle {
  public:
-  // Throws std::runtime_error when `path` is not a readable directory.
+  // Throws NotFound when `path` is not a directory, IoError when it cannot be
+  // opened.
   explicit DirectoryHandle(const std::string& path);
   ~DirectoryHandle();
   DirectoryHandle(const DirectoryHandle&) = delete;
@@ -95,9 +113,12 @@ class DirectoryHandle {
 
   const std::string& path() const { return path_; }
   // The whole file `name`, or false when it does not exist (other errors
-  // throw). At most `max_bytes` are accepted.
+  // throw IoError). At most `max_bytes` are accepted: a larger file is
+  // CorruptDatabase (this reads the small files of a database: manifests).
   bool ReadFile(const std::string& name, std::string* out, size_t max_bytes) const;
-  // The file `name` mapped read-only, or nullptr when it does not exist.
+  // The file `name` mapped read-only, or nullptr when it does not exist. A
+  // name that is not a regular file is CorruptDatabase (a database's files
+  // are named by its manifest); other errors throw IoError.
   std::shared_ptr<const MappedFile> MapFile(const std::string& name) const;
 
  private:
@@ -111,7 +132,8 @@ class DirectoryHandle {
 class DirectoryLock {
  public:
   // The lock, or nullptr when another open file (process or session) holds
-  // it. Throws std::runtime_error when `dir` cannot be opened.
+  // it. Throws NotFound when `dir` does not exist, IoError when it cannot be
+  // opened or locked.
   static std::unique_ptr<DirectoryLock> TryLock(const std::string& dir);
   ~DirectoryLock();
   DirectoryLock(const DirectoryLock&) = delete;
@@ -161,7 +183,8 @@ class BinaryWriter {
 };
 
 // Reads what BinaryWriter wrote; every read is bounds-checked and a short
-// buffer throws std::runtime_error mentioning `what` (the file name).
+// buffer throws CorruptDatabase (a truncated file) mentioning `what` (the
+// file name).
 class BinaryReader {
  public:
   BinaryReader(const char* data, size_t size, std::string what)
@@ -180,7 +203,7 @@ class BinaryReader {
   void GetArray(T* out, size_t count) {
     static_assert(std::is_trivially_copyable<T>::value, "flat values only");
     const size_t bytes = sizeof(T) * count;
-    if (count != 0 && bytes / count != sizeof(T)) PLACEDB_THROW_RUNTIME(what_, ": array too large");
+    if (count != 0 && bytes / count != sizeof(T)) PLACEDB_THROW_CORRUPT(what_, ": array too large");
     Need(bytes);
     if (bytes != 0) std::memcpy(out, data_ + pos_, bytes);
     pos_ += bytes;
@@ -202,7 +225,7 @@ class BinaryReader {
  private:
   void Need(size_t bytes) const {
     if (bytes > size_ - pos_) {
-      PLACEDB_THROW_RUNTIME(what_, ": file is truncated (needed ", bytes, " more bytes at offset ",
+      PLACEDB_THROW_CORRUPT(what_, ": file is truncated (needed ", bytes, " more bytes at offset ",
                             pos_, ", file has ", size_, ")");
     }
   }

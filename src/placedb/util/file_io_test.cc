@@ -81,13 +81,13 @@ TEST(FileIoTest, SpecialFilesAreStreamedNeverReplaced) {
   EXPECT_EQ(std::string(fifo_buf), "fifo data");
   EXPECT_TRUE(fs::is_fifo(fifo));
   // A directory.
-  EXPECT_TRUE(testing_util::ThrowsWith<std::runtime_error>(
-      [&] { WriteFileAtomic(tmp.Path(""), "x"); }, "is a directory"));
+  EXPECT_TRUE(testing_util::ThrowsWith<InvalidArgument>([&] { WriteFileAtomic(tmp.Path(""), "x"); },
+                                                        {"is a directory"}));
   // The binary writer (which fills its header in last) refuses them all.
-  EXPECT_TRUE(testing_util::ThrowsWith<std::runtime_error>([&] { AtomicFileWriter w(link); },
-                                                           "not a regular file"));
-  EXPECT_TRUE(testing_util::ThrowsWith<std::runtime_error>(
-      [&] { AtomicFileWriter w(fifo); }, "not a regular file"));
+  EXPECT_TRUE(testing_util::ThrowsWith<InvalidArgument>([&] { AtomicFileWriter w(link); },
+                                                        {"not a regular file"}));
+  EXPECT_TRUE(testing_util::ThrowsWith<InvalidArgument>([&] { AtomicFileWriter w(fifo); },
+                                                        {"not a regular file"}));
   // Nothing else appeared beside them.
   int entries = 0;
   for (const auto& e : fs::directory_iterator(tmp.Path(""))) {
@@ -127,7 +127,7 @@ TEST(FileIoTest, AFailedWriteLeavesNoTemporaryFile) {
   bool threw = false;
   try {
     WriteFileAtomic(tmp.Path("big.bin"), std::string(1 << 20, 'x'));
-  } catch (const std::runtime_error& e) {
+  } catch (const IoError& e) {
     threw = true;
     EXPECT_NE(std::string(e.what()).find("cannot write"), std::string::npos) << e.what();
   }
@@ -137,7 +137,7 @@ TEST(FileIoTest, AFailedWriteLeavesNoTemporaryFile) {
     const std::string chunk(2 << 20, 'y');
     w.Write(chunk.data(), chunk.size());
     w.Commit();
-  } catch (const std::runtime_error&) {
+  } catch (const IoError&) {
     writer_threw = true;
   }
   ::setrlimit(RLIMIT_FSIZE, &old_limit);
@@ -185,15 +185,41 @@ TEST(FileIoTest, DirectoryLockIsExclusive) {
   EXPECT_EQ(DirectoryLock::TryLock(tmp.Path("")), nullptr);
   first.reset();
   EXPECT_NE(DirectoryLock::TryLock(tmp.Path("")), nullptr);
-  EXPECT_THROW(DirectoryLock::TryLock(tmp.Path("missing")), std::runtime_error);
+  EXPECT_THROW(DirectoryLock::TryLock(tmp.Path("missing")), NotFound);
 }
 
 TEST(FileIoTest, MissingFileThrowsNamingIt) {
   try {
     ReadFileToString("/nonexistent/placedb/file.bin");
     FAIL();
-  } catch (const std::runtime_error& e) {
+  } catch (const NotFound& e) {
     EXPECT_NE(std::string(e.what()).find("/nonexistent/placedb/file.bin"), std::string::npos);
+  }
+}
+
+// The kinds of errors: a missing input is NotFound, a folder given as a file
+// InvalidArgument, a write the system refuses IoError. (Tests run as root, so
+// permissions cannot refuse anything: a path through a regular file and
+// /proc, which takes no new files, do.)
+TEST(FileIoTest, ErrorKindsOfReadsAndWrites) {
+  testing_util::TempDir tmp;
+  WriteFileAtomic(tmp.Path("file"), "x");
+  EXPECT_TRUE(testing_util::ThrowsWith<NotFound>([&] { ReadFileToString(tmp.Path("missing")); },
+                                                 {"cannot open", "missing"}));
+  EXPECT_THROW(ReadFileToString(tmp.Path("file/inside")), NotFound);
+  EXPECT_TRUE(testing_util::ThrowsWith<InvalidArgument>([&] { ReadFileToString(tmp.Path("")); },
+                                                        "is a directory"));
+  EXPECT_TRUE(testing_util::ThrowsWith<IoError>(
+      [&] { WriteFileAtomic(tmp.Path("file/out.json"), "{}"); }, "cannot write"));
+  EXPECT_THROW(WriteFileAtomic("/proc/placedb_test_output.json", "{}"), IoError);
+  EXPECT_THROW(AtomicFileWriter("/proc/placedb_test_output.bin"), IoError);
+  EXPECT_THROW(DirectoryHandle(tmp.Path("file")), NotFound);
+  // No message names a source file: that is in where().
+  try {
+    ReadFileToString(tmp.Path("missing"));
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()).find(".cc:"), std::string::npos) << e.what();
+    EXPECT_NE(e.where().find("util/file_io.cc:"), std::string::npos) << e.where();
   }
 }
 
@@ -253,8 +279,12 @@ TEST(FileIoTest, DirectoryHandleReadsFromTheOpenedDirectory) {
   EXPECT_FALSE(dir.ReadFile("missing.txt", &text, 100));
   EXPECT_EQ(dir.MapFile("missing.txt"), nullptr);
   ASSERT_NE(dir.MapFile("x.txt"), nullptr);
-  EXPECT_THROW(dir.ReadFile("x.txt", &text, 2), std::runtime_error);
-  EXPECT_THROW(DirectoryHandle(tmp.Path("none")), std::runtime_error);
+  EXPECT_THROW(dir.ReadFile("x.txt", &text, 2), CorruptDatabase);
+  EXPECT_THROW(DirectoryHandle(tmp.Path("none")), NotFound);
+  // A name that is not a regular file (here a folder) where a database file
+  // is expected: the database is damaged.
+  std::filesystem::create_directories(tmp.Path("b/sub.bin"));  // the handle's folder
+  EXPECT_THROW(dir.MapFile("sub.bin"), CorruptDatabase);
 }
 
 TEST(FileIoTest, BinaryRoundTripAndTruncation) {
@@ -280,7 +310,7 @@ TEST(FileIoTest, BinaryRoundTripAndTruncation) {
   try {
     short_reader.Get<double>();
     FAIL();
-  } catch (const std::runtime_error& e) {
+  } catch (const CorruptDatabase& e) {
     EXPECT_NE(std::string(e.what()).find("truncated"), std::string::npos);
     EXPECT_NE(std::string(e.what()).find("short.bin"), std::string::npos);
   }

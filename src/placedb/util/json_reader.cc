@@ -1,19 +1,20 @@
 #include "placedb/util/json_reader.h"
 
 #include <cmath>
-#include <stdexcept>
+
+#include "placedb/util/check.h"
 
 namespace placedb {
 
-JsonReader::JsonReader(const nlohmann::json& j, std::string where, bool runtime_errors)
-    : j_(j), where_(std::move(where)), runtime_errors_(runtime_errors) {
+JsonReader::JsonReader(const nlohmann::json& j, std::string where, JsonOrigin origin)
+    : j_(j), where_(std::move(where)), origin_(origin) {
   if (!j_.is_object()) Fail("", "is not a JSON object");
 }
 
 void JsonReader::Fail(const std::string& field, const std::string& what) const {
   const std::string message = where_ + (field.empty() ? "" : "." + field) + " " + what;
-  if (runtime_errors_) throw std::runtime_error(message);
-  throw std::invalid_argument(message);
+  if (origin_ == JsonOrigin::kDatabaseFile) PLACEDB_THROW_CORRUPT(message);
+  PLACEDB_THROW_INVALID(message);
 }
 
 bool JsonReader::Has(const char* key) const { return j_.contains(key); }
@@ -27,7 +28,7 @@ const nlohmann::json& JsonReader::Member(const char* key) const {
 JsonReader JsonReader::Child(const char* key) const {
   const nlohmann::json& v = Member(key);
   if (!v.is_object()) Fail(key, "is not a JSON object");
-  return JsonReader(v, where_ + "." + key, runtime_errors_);
+  return JsonReader(v, where_ + "." + key, origin_);
 }
 
 double JsonReader::Number(const char* key) const {

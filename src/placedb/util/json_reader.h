@@ -11,11 +11,16 @@
 
 namespace placedb {
 
+// Where the JSON came from, which decides the error a bad field is.
+enum class JsonOrigin {
+  kCaller,        // InvalidArgument: a result received over the wire, a caller's JSON
+  kDatabaseFile,  // CorruptDatabase: a manifest (or another file placedb wrote)
+};
+
 class JsonReader {
  public:
-  // Errors throw std::runtime_error (a damaged file) when `runtime_errors`,
-  // else std::invalid_argument (bad input from a caller). `where` names `j`.
-  JsonReader(const nlohmann::json& j, std::string where, bool runtime_errors = false);
+  // A bad field throws the error of `origin`. `where` names `j`.
+  JsonReader(const nlohmann::json& j, std::string where, JsonOrigin origin = JsonOrigin::kCaller);
 
   const nlohmann::json& json() const { return j_; }
   const std::string& where() const { return where_; }
@@ -42,7 +47,7 @@ class JsonReader {
  private:
   const nlohmann::json& j_;
   std::string where_;
-  bool runtime_errors_;
+  JsonOrigin origin_;
 };
 
 // JSON text of `j` (nlohmann's dump with `indent`; -1: one line) that never

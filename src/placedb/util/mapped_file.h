@@ -10,8 +10,9 @@ namespace placedb {
 
 class MappedFile {
  public:
-  // Maps `path` read-only. Throws std::runtime_error naming the path when it
-  // cannot be opened or mapped. An empty file gives an empty mapping.
+  // Maps `path` read-only. Throws NotFound when nothing is at `path`,
+  // InvalidArgument when it is not a regular file, IoError when it cannot be
+  // opened or mapped. An empty file gives an empty mapping.
   static std::shared_ptr<const MappedFile> Open(const std::string& path);
   // Maps the open file `fd` (which the caller keeps and closes); `what` names
   // it in errors.

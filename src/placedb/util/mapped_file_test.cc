@@ -27,8 +27,10 @@ TEST(MappedFileTest, EmptyAndMissingFiles) {
   testing_util::TempDir tmp;
   WriteFileAtomic(tmp.Path("empty"), "");
   EXPECT_EQ(MappedFile::Open(tmp.Path("empty"))->size(), 0u);
-  EXPECT_TRUE(testing_util::ThrowsWith<std::runtime_error>(
-      [&] { MappedFile::Open(tmp.Path("missing")); }, "missing"));
+  EXPECT_TRUE(testing_util::ThrowsWith<NotFound>([&] { MappedFile::Open(tmp.Path("missing")); },
+                                                 "missing"));
+  EXPECT_TRUE(testing_util::ThrowsWith<InvalidArgument>([&] { MappedFile::Open(tmp.Path("")); },
+                                                        "not a regular file"));
 }
 
 }  // namespace

@@ -17,6 +17,8 @@
 #include <utility>
 #include <vector>
 
+#include "placedb/util/error.h"
+
 namespace placedb {
 namespace testing_util {
 

@@ -1,6 +1,7 @@
 #include "placedb/dataset/bag/bag_source.h"
 
 #include <rosbag/bag.h>
+#include <rosbag/exceptions.h>
 #include <rosbag/view.h>
 #include <sensor_msgs/CompressedImage.h>
 #include <sensor_msgs/Image.h>
@@ -59,20 +60,35 @@ cv::Mat Decode(OpenBag& open, size_t index, const std::string& shown) {
   return cv::Mat();
 }
 
+std::vector<Frame> ReadFrames(const BagSourceOptions& options);
+
 }  // namespace
 
 std::vector<Frame> ReadBagFrames(const BagSourceOptions& options) {
   PLACEDB_CHECK_OPTIONS(options);
   std::error_code ec;
+  if (!std::filesystem::exists(options.bag, ec))
+    PLACEDB_THROW_NOT_FOUND("no bag file at ", options.bag);
   if (!std::filesystem::is_regular_file(options.bag, ec))
-    PLACEDB_THROW_INVALID("no bag file at ", options.bag);
-  auto open = std::make_shared<OpenBag>();
+    PLACEDB_THROW_INVALID("the bag ", options.bag, " is not a file");
+  // rosbag throws its own exceptions from opening and from every chunk it
+  // reads (the views are read lazily): a failed read is the system's, any
+  // other is a bag that is damaged or not a bag, the user's input.
   try {
-    open->bag.open(options.bag, rosbag::bagmode::Read);
-    open->view = std::make_unique<rosbag::View>(open->bag, rosbag::TopicQuery(options.topic));
-  } catch (const std::exception& e) {
-    PLACEDB_THROW_RUNTIME("cannot read the bag ", options.bag, ": ", e.what());
+    return ReadFrames(options);
+  } catch (const rosbag::BagIOException& e) {
+    PLACEDB_THROW_IO("cannot read the bag ", options.bag, ": ", e.what());
+  } catch (const rosbag::BagException& e) {
+    PLACEDB_THROW_INVALID("cannot read the bag ", options.bag, ": ", e.what());
   }
+}
+
+namespace {
+
+std::vector<Frame> ReadFrames(const BagSourceOptions& options) {
+  auto open = std::make_shared<OpenBag>();
+  open->bag.open(options.bag, rosbag::bagmode::Read);
+  open->view = std::make_unique<rosbag::View>(open->bag, rosbag::TopicQuery(options.topic));
   std::vector<Frame> frames;
   for (const rosbag::MessageInstance& m : *open->view) {
     const std::string type = m.getDataType();
@@ -85,7 +101,7 @@ std::vector<Frame> ReadBagFrames(const BagSourceOptions& options) {
         if (!compressed->header.stamp.isZero()) stamp = compressed->header.stamp.toSec();
       }
     } catch (const std::exception& e) {
-      PLACEDB_THROW_RUNTIME(options.bag, ": a message on ", options.topic,
+      PLACEDB_THROW_INVALID(options.bag, ": a message on ", options.topic,
                             " cannot be read: ", e.what());
     }
     Frame f;
@@ -144,5 +160,7 @@ std::vector<Frame> ReadBagFrames(const BagSourceOptions& options) {
   }
   return frames;
 }
+
+}  // namespace
 
 }  // namespace placedb

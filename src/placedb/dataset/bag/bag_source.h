@@ -35,9 +35,9 @@ struct BagSourceOptions {
 // the message header's stamp (the bag's receive time when it is 0), a pose
 // when one is within max_time_difference, image_path = "bag:topic#id", and a
 // `load` that decodes the message (thread-safe; the bag stays open while any
-// frame lives). Errors: std::invalid_argument for bad options, a missing
-// bag, a topic with no image messages; std::runtime_error for a damaged
-// bag; a build without ROS says so.
+// frame lives). Errors: NotFound for a missing bag; InvalidArgument for bad
+// options, a topic with no image messages, a damaged bag or message;
+// IoError when the bag cannot be read; a build without ROS says so.
 std::vector<Frame> ReadBagFrames(const BagSourceOptions& options);
 
 }  // namespace placedb

@@ -6,7 +6,9 @@ namespace placedb {
 namespace surf_internal {
 
 IntegralImage::IntegralImage(const cv::Mat& gray) {
-  PLACEDB_CHECK(gray.empty() || gray.type() == CV_8UC1, "type=", gray.type());
+  // SURF's ToGray made `gray`: 8-bit, one channel.
+  PLACEDB_CHECK(gray.empty() || gray.type() == CV_8UC1, "an integral image of ",
+                cv::typeToString(gray.type()));
   rows_ = gray.rows;
   cols_ = gray.cols;
   stride_ = cols_ + 1;

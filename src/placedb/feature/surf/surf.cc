@@ -37,8 +37,8 @@ cv::Mat ToGray(const cv::Mat& image) {
       return gray;
     }
     default:
-      PLACEDB_THROW_INVALID("SURF needs an 8-bit grey, BGR or BGRA image, got type ", image.type(),
-                            " (depth ", image.depth(), ", channels ", image.channels(), ")");
+      PLACEDB_THROW_INVALID("SURF needs an 8-bit grey, BGR or BGRA image (got ",
+                            cv::typeToString(image.type()), ")");
   }
 }
 
@@ -81,16 +81,24 @@ void Run(const cv::Mat& image, const cv::Mat& mask, const SurfOptions& options, 
   PLACEDB_CHECK_OPTIONS(options);
   PLACEDB_CHECK(keypoints != nullptr);
   const cv::Mat gray = ToGray(image);
+  // A mask comes from a caller of SurfFeature2D (OpenCV's interface).
   if (!mask.empty()) {
-    PLACEDB_CHECK(mask.type() == CV_8UC1, "mask must be CV_8UC1, got type ", mask.type());
-    PLACEDB_CHECK(mask.size() == image.size(), "mask size ", mask.size(), " != image size ",
-                  image.size());
+    if (mask.type() != CV_8UC1) {
+      PLACEDB_THROW_INVALID("a SURF mask must be CV_8UC1 (got ", cv::typeToString(mask.type()),
+                            ")");
+    }
+    if (mask.size() != image.size()) {
+      PLACEDB_THROW_INVALID("a SURF mask must have the image's size ", image.size(), " (got ",
+                            mask.size(), ")");
+    }
   }
   if (use_provided) {
     for (const cv::KeyPoint& kp : *keypoints) {
-      PLACEDB_CHECK(std::isfinite(kp.pt.x) && std::isfinite(kp.pt.y) && std::isfinite(kp.size) &&
-                        kp.size > 0.f,
-                    "bad keypoint pt=", kp.pt, " size=", kp.size);
+      if (!(std::isfinite(kp.pt.x) && std::isfinite(kp.pt.y) && std::isfinite(kp.size) &&
+            kp.size > 0.f)) {
+        PLACEDB_THROW_INVALID("a keypoint to describe needs a finite position and size > 0 (got ",
+                              kp.pt, ", size ", kp.size, ")");
+      }
     }
   } else {
     keypoints->clear();

@@ -61,7 +61,7 @@ struct SurfOptions {
 // image: CV_8UC1, or CV_8UC3 / CV_8UC4 (BGR / BGRA, converted to grey). An
 // empty image, or one too small or too flat to hold a feature, gives zero
 // keypoints and a 0 x 64 (or 0 x 128) descriptor matrix; other types throw
-// std::invalid_argument. descriptors may be null (detection only).
+// InvalidArgument. descriptors may be null (detection only).
 void DetectAndComputeSurf(const cv::Mat& image, const SurfOptions& options,
                           std::vector<cv::KeyPoint>* keypoints, cv::Mat* descriptors);
 
@@ -97,7 +97,7 @@ class SurfFeature2D : public cv::Feature2D {
   bool empty() const override { return false; }
 
   const SurfOptions& options() const { return options_; }
-  // Throws std::invalid_argument when options.Check() fails.
+  // Throws InvalidArgument when options.Check() fails.
   void setOptions(const SurfOptions& options);
 
  private:

@@ -307,8 +307,8 @@ TEST(SurfTest, InvalidOptionsThrow) {
   cv::Mat desc;
   auto expect_bad = [&](SurfOptions o) {
     EXPECT_NE(o.Check(), "");
-    EXPECT_THROW(DetectAndComputeSurf(img, o, &kps, &desc), std::invalid_argument);
-    EXPECT_THROW(SurfFeature2D::create(o), std::invalid_argument);
+    EXPECT_THROW(DetectAndComputeSurf(img, o, &kps, &desc), InvalidArgument);
+    EXPECT_THROW(SurfFeature2D::create(o), InvalidArgument);
   };
   SurfOptions o;
   o.hessian_threshold = -1;
@@ -332,10 +332,10 @@ TEST(SurfTest, UnsupportedImageTypeThrows) {
   cv::Mat desc;
   EXPECT_THROW(
       DetectAndComputeSurf(cv::Mat(50, 50, CV_32FC1, cv::Scalar(0)), SurfOptions(), &kps, &desc),
-      std::invalid_argument);
+      InvalidArgument);
   EXPECT_THROW(
       DetectAndComputeSurf(cv::Mat(50, 50, CV_16UC1, cv::Scalar(0)), SurfOptions(), &kps, &desc),
-      std::invalid_argument);
+      InvalidArgument);
 }
 
 TEST(SurfTest, TinyEmptyAndFlatImagesGiveZeroKeypoints) {
@@ -535,7 +535,7 @@ TEST(SurfTest, ProvidedKeypointsAnywhereAreDescribed) {
   EXPECT_TRUE(cv::checkRange(desc));
   // Bad keypoints are an error.
   std::vector<cv::KeyPoint> bad = {cv::KeyPoint(10, 10, 0)};
-  EXPECT_THROW(ComputeSurf(img, SurfOptions(), &bad, &desc), std::invalid_argument);
+  EXPECT_THROW(ComputeSurf(img, SurfOptions(), &bad, &desc), InvalidArgument);
 }
 
 TEST(SurfTest, Feature2DInterface) {
@@ -551,7 +551,7 @@ TEST(SurfTest, Feature2DInterface) {
   surf->setOptions(o);
   EXPECT_EQ(surf->descriptorSize(), 64);
   o.num_octaves = -1;
-  EXPECT_THROW(surf->setOptions(o), std::invalid_argument);
+  EXPECT_THROW(surf->setOptions(o), InvalidArgument);
   EXPECT_EQ(surf->options().num_octaves, 4);
 
   // Used through the base class, with a mask.
