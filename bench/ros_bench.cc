@@ -79,7 +79,7 @@ int main(int argc, char** argv) {
       o.threads = threads;
       const placedb::PlaceDatabase db = placedb::PlaceDatabase::Open(db_dir, o);
       keyframes = db.size();
-      features = db.Read().database().num_features();
+      features = db.num_features();
       for (int loop = 0; loop < loops; ++loop) {
         for (const placedb::Frame& f : queries) {
           single[threads].push_back(db.Query(placedb::LoadFrameImage(f)).times.total_ms);

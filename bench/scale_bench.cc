@@ -438,7 +438,7 @@ int main(int argc, char** argv) {
                                  guided_candidates));
         }
       }
-      const double limit_ms = query_features * db.Read().database().num_features() * ns / 1e6;
+      const double limit_ms = query_features * db.num_features() * ns / 1e6;
       const ModeRun* exhaustive = nullptr;
       for (const ModeRun& r : runs) {
         if (r.mode == "exhaustive") exhaustive = &r;
@@ -446,8 +446,8 @@ int main(int argc, char** argv) {
 
       nlohmann::json size = {
           {"keyframes", db.size()},
-          {"features", db.Read().database().num_features()},
-          {"features_per_keyframe", static_cast<double>(db.Read().database().num_features()) / db.size()},
+          {"features", db.num_features()},
+          {"features_per_keyframe", static_cast<double>(db.num_features()) / db.size()},
           {"query_features_mean", query_features},
           {"build_seconds", build_seconds},
           {"reused", reused},
@@ -463,10 +463,10 @@ int main(int argc, char** argv) {
           "{:.1f} ms), "
           "RSS {:.0f} MiB (+{:.0f} MiB); popcount limit {:.2f} ms per query ({:.0f} x {} "
           "features x {:.3f} ns)\n",
-          db.size(), db.Read().database().num_features(), build_seconds, reused ? " (earlier run)" : "",
+          db.size(), db.num_features(), build_seconds, reused ? " (earlier run)" : "",
           bytes / 1e6, open_ms, first_open_ms, rss_after, rss_after - rss_before, limit_ms,
           query_features,
-          db.Read().database().num_features(), ns);
+          db.num_features(), ns);
       for (const ModeRun& r : runs) {
         const LatencyStats s = placedb::ComputeLatencyStats(r.ms);
         const size_t nq = r.queries.size();

@@ -46,18 +46,6 @@ IndexKind ParseIndexKind(const std::string& name) {
   PLACEDB_THROW_INVALID("unknown index '", name, "' (expected none or bow)");
 }
 
-std::string BuildOptions::Check() const {
-  if (crop != CropMode::kNone && crop != CropMode::kChroma) return "crop is unknown";
-  if (index != IndexKind::kNone && index != IndexKind::kBow) return "index is unknown";
-  if (!IsValidAreaDivisor(resize))
-    return "resize must be 1, 4 or 16 (got " + std::to_string(resize) + ")";
-  return FirstReason({CheckRange("png_compression", png_compression, 0, 9),
-                      CheckRange("threads", threads, 0, 1024),
-                      Nested("crop_options", crop_options.Check()),
-                      Nested("features", features.Check()),
-                      Nested("vocabulary", vocabulary.Check()), Nested("bow", bow.Check())});
-}
-
 ProcessedFrame ProcessFrame(const Frame& frame, const cv::Mat& image, const BuildOptions& options,
                             const FeatureExtractor& extractor) {
   ProcessedFrame out;
@@ -114,14 +102,10 @@ ProcessedFrame ProcessFrame(const Frame& frame, const cv::Mat& image, const Buil
   return out;
 }
 
-// JSON forms of the options structs (field names = member names).
-NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(CropOptions, smooth_sigma, percentile, padding,
-                                   min_fast_keypoints, fast_threshold, fast_nonmax,
-                                   min_region_pixels)
-NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(OrbOptions, max_features, scale_factor, num_levels,
-                                   edge_threshold, fast_threshold, patch_size)
-NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(SurfOptions, hessian_threshold, num_octaves, num_octave_layers,
-                                   extended, upright, max_features)
+std::string BuildReportJson(const BuildReport& report, const std::string& database,
+                            int indent) {
+  return DumpJson(BuildReportToJson(report, database), indent);
+}
 
 nlohmann::json BuildReportToJson(const BuildReport& r, const std::string& database) {
   return {{"database", database},
@@ -136,109 +120,6 @@ nlohmann::json BuildReportToJson(const BuildReport& r, const std::string& databa
           {"full_png_bytes", r.full_png_bytes},
           {"index_bytes", r.index_bytes},
           {"seconds", r.seconds}};
-}
-
-nlohmann::json BuildSettingsToJson(const BuildOptions& o) {
-  nlohmann::json j;
-  j["crop"] = CropModeName(o.crop);
-  j["crop_options"] = o.crop_options;
-  j["resize"] = o.resize;
-  j["store_images"] = o.store_images;
-  j["extract_in_context"] = o.extract_in_context;
-  j["png_compression"] = o.png_compression;
-  j["features"]["type"] = FeatureTypeName(o.features.type);
-  j["features"]["orb"] = o.features.orb;
-  j["features"]["surf"] = o.features.surf;
-  j["features"]["upscale_below"] = o.features.upscale_below;
-  j["index"] = IndexKindName(o.index);
-  if (o.index == IndexKind::kBow) {
-    const VocabularyOptions& v = o.vocabulary;
-    if (o.vocabulary_file.empty()) {
-      j["vocabulary"] = {{"branching", v.branching},
-                         {"depth", v.depth},
-                         {"iterations", v.iterations},
-                         {"max_training_descriptors", v.max_training_descriptors},
-                         {"seed", v.seed}};
-    } else {
-      j["vocabulary_file"] = o.vocabulary_file;
-    }
-    j["bow"] = {{"direct_level", o.bow.direct_level}};
-  }
-  return j;
-}
-
-BuildOptions BuildOptionsFromManifest(const nlohmann::json& manifest, const std::string& dir) {
-  const JsonReader m(manifest, dir + "/manifest.json", JsonOrigin::kDatabaseFile);
-  const JsonReader s = m.Child("settings");
-  BuildOptions o;
-  // The parsers say InvalidArgument (a caller's bad name); in a manifest the
-  // same name is a damaged database.
-  try {
-    o.crop = ParseCropMode(s.String("crop"));
-    o.features.type = ParseFeatureType(s.Child("features").String("type"));
-  } catch (const InvalidArgument& e) {
-    PLACEDB_THROW_CORRUPT(dir, "/manifest.json: ", e.message());
-  }
-  o.resize = static_cast<int>(s.Integer("resize", 1, 16));
-  s.Read("store_images", &o.store_images);
-  s.Read("extract_in_context", &o.extract_in_context);
-  s.Read("png_compression", &o.png_compression);
-  if (s.Has("crop_options")) {
-    const JsonReader c = s.Child("crop_options");
-    CropOptions& co = o.crop_options;
-    c.Read("smooth_sigma", &co.smooth_sigma);
-    c.Read("percentile", &co.percentile);
-    c.Read("padding", &co.padding);
-    c.Read("min_fast_keypoints", &co.min_fast_keypoints);
-    c.Read("fast_threshold", &co.fast_threshold);
-    c.Read("fast_nonmax", &co.fast_nonmax);
-    c.Read("min_region_pixels", &co.min_region_pixels);
-  }
-  const JsonReader f = s.Child("features");
-  // A manifest without the field predates small-frame upscaling: its
-  // keyframes were extracted without it, and so are its queries.
-  o.features.upscale_below = 0;
-  f.Read("upscale_below", &o.features.upscale_below);
-  const JsonReader orb = f.Child("orb");
-  OrbOptions& oo = o.features.orb;
-  orb.Read("max_features", &oo.max_features);
-  orb.Read("scale_factor", &oo.scale_factor);
-  orb.Read("num_levels", &oo.num_levels);
-  orb.Read("edge_threshold", &oo.edge_threshold);
-  orb.Read("fast_threshold", &oo.fast_threshold);
-  orb.Read("patch_size", &oo.patch_size);
-  const JsonReader surf = f.Child("surf");
-  SurfOptions& so = o.features.surf;
-  surf.Read("hessian_threshold", &so.hessian_threshold);
-  surf.Read("num_octaves", &so.num_octaves);
-  surf.Read("num_octave_layers", &so.num_octave_layers);
-  surf.Read("extended", &so.extended);
-  surf.Read("upright", &so.upright);
-  surf.Read("max_features", &so.max_features);
-  // A manifest without the field predates retrieval indexes.
-  if (s.Has("index")) {
-    try {
-      o.index = ParseIndexKind(s.String("index"));
-    } catch (const InvalidArgument& e) {
-      PLACEDB_THROW_CORRUPT(dir, "/manifest.json: settings: ", e.message());
-    }
-  }
-  if (o.index == IndexKind::kBow) {
-    if (s.Has("vocabulary")) {
-      const JsonReader v = s.Child("vocabulary");
-      VocabularyOptions& vo = o.vocabulary;
-      v.Read("branching", &vo.branching);
-      v.Read("depth", &vo.depth);
-      v.Read("iterations", &vo.iterations);
-      v.Read("max_training_descriptors", &vo.max_training_descriptors);
-      vo.seed = v.Unsigned("seed");
-    }
-    if (s.Has("vocabulary_file")) o.vocabulary_file = s.String("vocabulary_file");
-    s.Child("bow").Read("direct_level", &o.bow.direct_level);
-  }
-  const std::string reason = o.Check();
-  if (!reason.empty()) PLACEDB_THROW_CORRUPT(dir, "/manifest.json: settings: ", reason);
-  return o;
 }
 
 namespace {

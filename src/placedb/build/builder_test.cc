@@ -192,9 +192,11 @@ TEST(BuilderTest, ExtractorOptionsRoundTripThroughManifest) {
   nlohmann::json manifest;
   manifest["settings"] = BuildSettingsToJson(surf);
   EXPECT_EQ(BuildOptionsFromManifest(manifest, "m").features.type, FeatureType::kSurf);
-  // A manifest from before small-frame upscaling: its queries are not upscaled.
+  // Every version 2 manifest has every setting but the index's: a missing
+  // key is a damaged manifest, named.
   manifest["settings"]["features"].erase("upscale_below");
-  EXPECT_EQ(BuildOptionsFromManifest(manifest, "m").features.upscale_below, 0);
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { BuildOptionsFromManifest(manifest, "m"); },
+                                          {"settings.features.upscale_below is missing"}));
 }
 
 // Every setting the manifest stores reads back as it was written, at both ends
@@ -290,10 +292,10 @@ TEST(BuilderTest, EverySettingRoundTripsAtItsRangeLimits) {
   manifest["settings"] = BuildSettingsToJson(hi);
   manifest["settings"]["vocabulary"]["seed"] = -1;
   EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { BuildOptionsFromManifest(manifest, "m"); },
-                                          {"seed is negative"}));
+                                          {"settings.vocabulary.seed", "vocabulary_seed must be in [0, 2^64) (got -1)"}));
   manifest["settings"]["vocabulary"]["seed"] = 1.5;
   EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { BuildOptionsFromManifest(manifest, "m"); },
-                                          {"seed is not an integer"}));
+                                          {"settings.vocabulary.seed is not a whole number"}));
 }
 
 // A manifest is input from outside: every field is type-checked strictly and
@@ -310,25 +312,33 @@ TEST(BuilderTest, MalformedManifestSettingsAreRejected) {
   };
   EXPECT_TRUE(fails([](nlohmann::json& m) { m.erase("settings"); }, "settings is missing"));
   EXPECT_TRUE(
-      fails([](nlohmann::json& m) { m["settings"]["features"].erase("orb"); }, "orb is missing"));
+      fails([](nlohmann::json& m) { m["settings"]["features"].erase("orb"); },
+            "settings.features.orb.max_features is missing"));
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m["settings"]["crop_options"].erase("padding"); },
+                    "settings.crop_options.padding is missing"));
+  // A setting this placedb does not know cannot be honoured: refused, named.
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m["settings"]["features"]["orb"]["wta_k"] = 2; },
+                    "settings.features.orb.wta_k is not a setting this placedb knows"));
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m["settings"]["gamma"] = 1.0; },
+                    "settings.gamma is not a setting this placedb knows"));
   EXPECT_TRUE(
-      fails([](nlohmann::json& m) { m["settings"]["resize"] = true; }, "resize is not an integer"));
+      fails([](nlohmann::json& m) { m["settings"]["resize"] = true; }, "settings.resize is not a whole number"));
   EXPECT_TRUE(
-      fails([](nlohmann::json& m) { m["settings"]["resize"] = 3; }, "resize must be 1, 4 or 16"));
+      fails([](nlohmann::json& m) { m["settings"]["resize"] = 3; }, "resize must be 1, 4 or 16 (got 3)"));
   EXPECT_TRUE(fails(
       [](nlohmann::json& m) { m["settings"]["features"]["orb"]["num_levels"] = -2147483649LL; },
-      "num_levels is out of range"));
+      "orb_levels must be in [1, 32] (got -2147483649)"));
   EXPECT_TRUE(
       fails([](nlohmann::json& m) { m["settings"]["features"]["orb"]["num_levels"] = 100000; },
-            "features.orb.num_levels must be in [1, 32]"));
+            "orb_levels must be in [1, 32] (got 100000)"));
   EXPECT_TRUE(fails([](nlohmann::json& m) { m["settings"]["features"]["surf"]["extended"] = 1; },
                     "extended is not true or false"));
   EXPECT_TRUE(fails([](nlohmann::json& m) { m["settings"]["crop_options"]["smooth_sigma"] = 1e6; },
-                    "crop_options.smooth_sigma must be in [0, 50]"));
+                    "crop_sigma must be in [0, 50] (got 1000000)"));
   EXPECT_TRUE(
       fails([](nlohmann::json& m) { m["settings"]["crop"] = "square"; }, "unknown crop mode"));
   EXPECT_TRUE(fails([](nlohmann::json& m) { m["settings"]["features"]["type"] = 2; },
-                    "type is not a string"));
+                    "settings.features.type is not a string"));
   EXPECT_TRUE(fails([](nlohmann::json& m) { m = nlohmann::json::array(); }, "not a JSON object"));
 }
 
@@ -337,10 +347,10 @@ TEST(BuilderTest, BuildOptionRanges) {
   BuildOptions o = SmallBuild();
   EXPECT_EQ(o.Check(), "");
   o.crop_options.smooth_sigma = std::nan("");
-  EXPECT_NE(o.Check().find("crop_options.smooth_sigma"), std::string::npos);
+  EXPECT_NE(o.Check().find("`crop_sigma` must be in [0, 50] (got nan)"), std::string::npos);
   o = SmallBuild();
   o.crop_options.padding = 2147483647;
-  EXPECT_NE(o.Check().find("crop_options.padding"), std::string::npos);
+  EXPECT_NE(o.Check().find("`crop_padding` must be in [0, 4096]"), std::string::npos);
   o = SmallBuild();
   o.threads = -1;
   EXPECT_NE(o.Check().find("threads"), std::string::npos);
@@ -471,7 +481,7 @@ TEST(BuilderTest, RefusesNonDatabaseOutputs) {
   BuildOptions bad = options;
   bad.resize = 2;
   EXPECT_TRUE(ThrowsWith<InvalidArgument>(
-      [&] { BuildDatabase(frames, bad, tmp.Path("bad_db"), "x"); }, "resize must be 1, 4 or 16"));
+      [&] { BuildDatabase(frames, bad, tmp.Path("bad_db"), "x"); }, "resize must be 1, 4 or 16 (got 2)"));
   EXPECT_FALSE(fs::exists(tmp.Path("bad_db")));
 
   // An existing empty directory is fine.

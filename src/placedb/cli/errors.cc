@@ -5,6 +5,7 @@
 #include <new>
 #include <opencv2/core.hpp>
 
+#include "placedb/cli/options.h"
 #include "placedb/util/file_io.h"
 
 namespace placedb {
@@ -30,7 +31,7 @@ int ExitCode(const Error& e) {
 }
 
 std::string FormatForCommandLine(const Error& e, bool verbose) {
-  std::string text = FormatOptionNames(e.message(), OptionNames::kFlags);
+  std::string text = FormatOptionNames(e.message(), FlagOf);
   const bool bug = e.kind() == ErrorKind::kInternal;
   if (bug) text = kBug + text;
   // A bug report needs the line even without --verbose.

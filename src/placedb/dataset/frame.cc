@@ -18,10 +18,6 @@
 
 namespace placedb {
 
-std::string ImageReadOptions::Check() const {
-  return CheckRange("max_pixels", max_pixels, int64_t{1}, int64_t{1} << 30);
-}
-
 namespace {
 
 constexpr int64_t kMaxSide = 0x7fffffff;

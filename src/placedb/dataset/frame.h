@@ -11,6 +11,7 @@
 
 #include "placedb/util/error.h"
 #include "placedb/util/pose.h"
+#include "placedb/util/option_table.h"
 
 namespace placedb {
 
@@ -29,6 +30,8 @@ struct ImageReadOptions {
   // [1, 2^30] (2^30 is OpenCV's own limit).
   int64_t max_pixels = kDefaultMaxImagePixels;
 
+  // The options' names, defaults, ranges and help (util/option_table.h).
+  static const OptionTable<ImageReadOptions>& Table();
   std::string Check() const;
 };
 

@@ -50,16 +50,6 @@ size_t AssignNearestPoses(std::vector<Frame>* frames, std::vector<TumPoseStamped
   return poseless;
 }
 
-std::string TumOptions::Check() const {
-  if (!(max_time_difference >= 0.0 && max_time_difference <= 3600.0)) {
-    return "max_time_difference must be in [0, 3600] seconds, got " +
-           std::to_string(max_time_difference);
-  }
-  if (rgb_list.empty()) return "rgb_list must not be empty";
-  if (groundtruth.empty()) return "groundtruth must not be empty";
-  return "";
-}
-
 std::vector<TumPoseStamped> ReadTumTrajectory(const std::string& path) {
   std::vector<TumPoseStamped> poses;
   for (const internal::TextLine& line : internal::ReadDataLines(path, "TUM trajectory")) {

@@ -9,6 +9,7 @@
 
 #include "placedb/dataset/frame.h"
 #include "placedb/util/pose.h"
+#include "placedb/util/option_table.h"
 
 namespace placedb {
 
@@ -22,6 +23,8 @@ struct TumOptions {
   std::string groundtruth = "groundtruth.txt";
 
   // Empty when valid, else the reason.
+  // The options' names, defaults, ranges and help (util/option_table.h).
+  static const OptionTable<TumOptions>& Table();
   std::string Check() const;
 };
 

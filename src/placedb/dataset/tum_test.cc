@@ -262,7 +262,7 @@ TEST(TumTest, MissingFolderAndBadOptions) {
   options.max_time_difference = -1.0;
   EXPECT_FALSE(options.Check().empty());
   EXPECT_TRUE(ThrowsWith<InvalidArgument>(
-      [&] { ReadTumSequence(kData + "/tum_fr2_pioneer_mini", options); }, {"max_time_difference"}));
+      [&] { ReadTumSequence(kData + "/tum_fr2_pioneer_mini", options); }, {"max_time_diff"}));
   EXPECT_TRUE(TumOptions().Check().empty());
 }
 

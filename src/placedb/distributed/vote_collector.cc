@@ -7,13 +7,6 @@
 
 namespace placedb {
 
-std::string VoteOptions::Check() const {
-  return FirstReason({CheckRange("num_partitions", num_partitions, 1, 4096),
-                      CheckRange("deadline_ms", deadline_ms, 0.0, 600000.0, /*lo_open=*/true),
-                      CheckRange("max_pending", max_pending, 1, 100000),
-                      Nested("query", query.Check())});
-}
-
 const char* VoteStatusName(VoteStatus status) {
   switch (status) {
     case VoteStatus::kAccepted:

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "placedb/query/query.h"
+#include "placedb/util/option_table.h"
 
 namespace placedb {
 
@@ -30,6 +31,8 @@ struct VoteOptions {
   // options the workers ran with, before ForPartition.
   QueryOptions query;
 
+  // The options' names, defaults, ranges and help (util/option_table.h).
+  static const OptionTable<VoteOptions>& Table();
   std::string Check() const;
 };
 

@@ -138,7 +138,7 @@ TEST(VoteCollectorTest, OptionsAreChecked) {
   VoteOptions o;
   EXPECT_EQ(o.Check(), "");
   o.num_partitions = 0;
-  EXPECT_NE(o.Check().find("num_partitions"), std::string::npos);
+  EXPECT_NE(o.Check().find("`partitions`"), std::string::npos);
   o = VoteOptions();
   o.deadline_ms = 0;
   EXPECT_NE(o.Check().find("deadline_ms"), std::string::npos);

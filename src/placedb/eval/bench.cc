@@ -15,14 +15,9 @@
 #include "placedb/util/options.h"
 #include "placedb/util/thread_pool.h"
 #include "placedb/util/timer.h"
+#include "placedb/session/storage_view.h"
 
 namespace placedb {
-
-std::string BenchOptions::Check() const {
-  return FirstReason({CheckRange("num_queries", num_queries, 0, 1000000),
-                      CheckRange("repeat", repeat, 1, 1000),
-                      CheckRange("threads", threads, 0, 1024)});
-}
 
 namespace {
 
@@ -55,7 +50,7 @@ BenchReport RunBench(const PlaceDatabase& db, const std::vector<Frame>& frames,
   PLACEDB_CHECK_OPTIONS(options);
   PLACEDB_CHECK_OPTIONS(query_options);
   if (db.empty()) PLACEDB_THROW_INVALID("the database is empty: nothing to benchmark");
-  const PlaceDatabase::View view = db.Read();
+  const StorageView view(db);
   const Database& database = view.database();
   std::vector<FeatureSet> features;
   double extract_ms = 0;

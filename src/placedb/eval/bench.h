@@ -15,6 +15,7 @@
 
 #include "placedb/dataset/frame.h"
 #include "placedb/session/place_database.h"
+#include "placedb/util/option_table.h"
 
 namespace placedb {
 
@@ -30,6 +31,8 @@ struct BenchOptions {
   // Default 0.
   int threads = 0;
 
+  // The options' names, defaults, ranges and help (util/option_table.h).
+  static const OptionTable<BenchOptions>& Table();
   std::string Check() const;
 };
 

@@ -12,6 +12,7 @@
 #include "placedb/build/builder.h"
 #include "placedb/session/place_database.h"
 #include "placedb/util/testing.h"
+#include "placedb/session/storage_view.h"
 
 namespace placedb {
 namespace {
@@ -52,7 +53,7 @@ TEST(BenchTest, OrbReportIsCompleteAndRankingsAgree) {
   EXPECT_EQ(r.repeat, 1);
   EXPECT_EQ(r.threads, 2);
   EXPECT_EQ(r.num_keyframes, 10u);
-  EXPECT_EQ(r.num_db_descriptors, db.Read().database().num_features());
+  EXPECT_EQ(r.num_db_descriptors, StorageView(db).database().num_features());
   EXPECT_GT(r.num_db_descriptors, 0u);
   EXPECT_EQ(r.feature_type, "orb");
   EXPECT_FALSE(r.kernel.empty());
@@ -101,7 +102,7 @@ TEST(BenchTest, CheckRejectsBadOptions) {
   BenchOptions many_threads = Quick();
   many_threads.threads = 2000;
   const std::vector<std::pair<BenchOptions, std::string>> bad = {{repeat, "repeat"},
-                                                                 {queries, "num_queries"},
+                                                                 {queries, "queries"},
                                                                  {negative_threads, "threads"},
                                                                  {many_threads, "threads"}};
   testing_util::TempDir tmp;

@@ -9,18 +9,15 @@
 #include <opencv2/imgcodecs.hpp>
 #include <random>
 
+#include "placedb/query/query.h"
 #include "placedb/util/check.h"
 #include "placedb/util/file_io.h"
 #include "placedb/util/options.h"
 #include "placedb/util/progress.h"
+#include "placedb/session/storage_view.h"
 
 namespace placedb {
 namespace fs = std::filesystem;
-
-std::string EvalOptions::Check() const {
-  if (all) return "";
-  return CheckRange("num_queries", num_queries, 1, 1000000);
-}
 
 std::vector<Frame> SampleFrames(std::vector<Frame> frames, int n, uint64_t seed) {
   if (n > 0 && static_cast<size_t>(n) < frames.size()) {
@@ -87,7 +84,7 @@ EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_fra
     QueryRecord rec;
     rec.query_id = q.id;
     rec.image = q.image_path;
-    rec.has_true_match_in_db = truth.AnyCorrectIn(q, db.Read().database());
+    rec.has_true_match_in_db = truth.AnyCorrectIn(q, StorageView(db).database());
     const cv::Mat image = LoadFrameImage(q);
     if (image.empty()) {
       spdlog::warn("skipped unreadable query image {} (frame {})", q.image_path, q.id);
@@ -147,8 +144,8 @@ EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_fra
   report.verify_ms = ComputeLatencyStats(verify);
   if (report.num_queries > 0) report.mean_coverage = coverage_sum / report.num_queries;
   report.image_bytes = DirectorySize((fs::path(db.directory()) / "images").string());
-  report.feature_bytes = db.Read().database().keyframes_bytes();
-  const nlohmann::json info = db.manifest();
+  report.feature_bytes = db.keyframes_bytes();
+  const nlohmann::json info = StorageView(db).database().info();
   if (info.contains("bytes") && info["bytes"].is_object() &&
       info["bytes"].value("full_frames_png", nlohmann::json()).is_number_unsigned()) {
     report.full_png_bytes = info["bytes"]["full_frames_png"].get<uint64_t>();

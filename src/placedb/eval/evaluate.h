@@ -13,6 +13,7 @@
 #include "placedb/eval/ground_truth.h"
 #include "placedb/eval/metrics.h"
 #include "placedb/session/place_database.h"
+#include "placedb/util/option_table.h"
 
 namespace placedb {
 
@@ -32,6 +33,8 @@ struct EvalOptions {
   // search. Default false (every query without a prior).
   bool sequence = false;
 
+  // The options' names, defaults, ranges and help (util/option_table.h).
+  static const OptionTable<EvalOptions>& Table();
   std::string Check() const;
 };
 

@@ -15,6 +15,7 @@
 #include "placedb/build/builder.h"
 #include "placedb/session/place_database.h"
 #include "placedb/util/testing.h"
+#include "placedb/session/storage_view.h"
 
 namespace placedb {
 namespace {
@@ -320,7 +321,7 @@ TEST(EvaluateTest, RtabmapSplitSurfRecall) {
   const PlaceDatabase db = BuildRtabmap(1, 40, options, tmp.db());
   EXPECT_EQ(db.feature_type(), FeatureType::kSurf);
   EXPECT_EQ(db.extractor_options().type, FeatureType::kSurf);
-  EXPECT_EQ(db.Read().database().descriptor_bytes(), 64 * 4);
+  EXPECT_EQ(StorageView(db).database().descriptor_bytes(), 64 * 4);
   const EvalReport r = EvaluateRtabmap(db);
   PrintReport("surf uncropped", r);
   // Measured: 43 of 44 (0.977).
@@ -414,7 +415,7 @@ TEST(EvaluateTest, BaselineRanksLikeOurs) {
   for (int id : {41, 45, 50, 58, 66, 81}) {
     const FeatureSet features = db.Extract(cv::imread(testing_util::RtabmapImage(id)));
     ASSERT_FALSE(features.empty()) << "query " << id;
-    const PlaceDatabase::View view = db.Read();
+    const StorageView view(db);
     const std::vector<RankedKeyframe> ours = QueryDatabase(view.database(), features, q).ranked;
     const std::vector<ScoredKeyframe> base = BfMatcherQuery(view.database(), features, q);
     ASSERT_FALSE(ours.empty()) << "query " << id;

@@ -21,6 +21,7 @@
 #include "placedb/util/file_io.h"
 #include "placedb/util/json_reader.h"
 #include "placedb/util/options.h"
+#include "placedb/session/storage_view.h"
 
 #ifndef PLACEDB_PYTHON
 #define PLACEDB_PYTHON "/usr/bin/python3"
@@ -49,31 +50,6 @@ std::string ExperimentSetting::Label() const {
   return fmt::format("{} {} {} {}", feature, CropModeName(crop),
                      resize == 1 ? std::string("1") : fmt::format("1/{}", resize),
                      verify ? "verified" : "unverified");
-}
-
-namespace {
-template <typename T>
-std::string CheckList(const char* name, const std::vector<T>& values) {
-  if (values.empty()) return fmt::format("{} is empty", name);
-  for (size_t i = 0; i < values.size(); ++i) {
-    for (size_t j = 0; j < i; ++j) {
-      if (values[i] == values[j]) return fmt::format("{} repeats a value", name);
-    }
-  }
-  return "";
-}
-}  // namespace
-
-std::string ExperimentOptions::Check() const {
-  std::string resize_reason;
-  for (const int r : resizes) {
-    if (!IsValidAreaDivisor(r)) resize_reason = fmt::format("resizes: {} is not 1, 4 or 16", r);
-  }
-  return FirstReason({CheckList("features", features), CheckList("crops", crops),
-                      CheckList("resizes", resizes), resize_reason, CheckList("verify", verify),
-                      Nested("build", build.Check()), Nested("query", query.Check()),
-                      Nested("eval", eval.Check()), CheckRange("num_pictures", num_pictures, 0, 20),
-                      CheckRange("num_failures", num_failures, 0, 100)});
 }
 
 std::vector<ExperimentSetting> ExperimentOptions::Grid() const {
@@ -478,7 +454,7 @@ class PictureMaker {
       const Frame& frame = queries_.at(id);
       const int32_t answer = AnswerOf(q);
       int32_t true_id = 0;
-      const PlaceDatabase::View view = db.Read();
+      const StorageView view(db);
       for (const Keyframe& k : view.database().keyframes()) {
         if (truth_.IsCorrect(frame, k)) {
           true_id = k.id;

@@ -25,6 +25,7 @@
 #include "placedb/eval/ground_truth.h"
 #include "placedb/build/builder.h"
 #include "placedb/query/query.h"
+#include "placedb/util/option_table.h"
 
 namespace placedb {
 
@@ -75,6 +76,8 @@ struct ExperimentOptions {
     q.top_k = 10;
     return q;
   }
+  // The options' names, defaults, ranges and help (util/option_table.h).
+  static const OptionTable<ExperimentOptions>& Table();
   std::string Check() const;
   // The settings in run order: feature, crop, resize, verify (on first).
   std::vector<ExperimentSetting> Grid() const;

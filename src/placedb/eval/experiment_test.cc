@@ -51,19 +51,19 @@ TEST(ExperimentOptionsTest, ChecksTheGrid) {
   EXPECT_EQ(ExperimentOptions().Grid().size(), 24u);  // the paper's grid x verification
   ExperimentOptions o;
   o.features.clear();
-  EXPECT_NE(o.Check().find("features is empty"), std::string::npos);
+  EXPECT_NE(o.Check().find("`features` is empty"), std::string::npos);
   o = ExperimentOptions();
   o.resizes = {1, 2};
-  EXPECT_NE(o.Check().find("resizes"), std::string::npos);
+  EXPECT_NE(o.Check().find("`resize`"), std::string::npos);
   o = ExperimentOptions();
   o.crops = {CropMode::kNone, CropMode::kNone};
-  EXPECT_NE(o.Check().find("crops repeats"), std::string::npos);
+  EXPECT_NE(o.Check().find("`crop` repeats"), std::string::npos);
   o = ExperimentOptions();
   o.num_pictures = 21;
-  EXPECT_NE(o.Check().find("num_pictures"), std::string::npos);
+  EXPECT_NE(o.Check().find("`pictures`"), std::string::npos);
   o = ExperimentOptions();
   o.query.top_k = 0;
-  EXPECT_NE(o.Check().find("query"), std::string::npos);
+  EXPECT_NE(o.Check().find("`top_k`"), std::string::npos);
   const ExperimentSetting s{FeatureType::kSurf, CropMode::kChroma, 16, false};
   EXPECT_EQ(s.Name(), "surf_chroma_r16_noverify");
   EXPECT_EQ(s.Label(), "SURF chroma 1/16 unverified");

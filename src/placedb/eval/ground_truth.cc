@@ -9,11 +9,6 @@
 
 namespace placedb {
 
-std::string PoseThresholds::Check() const {
-  return FirstReason({CheckRange("max_distance_m", max_distance_m, 0.0, 1e6, /*lo_open=*/true),
-                      CheckRange("max_angle_deg", max_angle_deg, 0.0, 180.0, /*lo_open=*/true)});
-}
-
 GroundTruth GroundTruth::FromMatchList(MatchTruth truth) {
   GroundTruth g;
   for (auto& [query, ids] : truth) std::sort(ids.begin(), ids.end());

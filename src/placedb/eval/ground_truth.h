@@ -9,6 +9,7 @@
 #include "placedb/dataset/frame.h"
 #include "placedb/dataset/match_truth.h"
 #include "placedb/storage/database.h"
+#include "placedb/util/option_table.h"
 
 namespace placedb {
 
@@ -21,6 +22,8 @@ struct PoseThresholds {
   // Default 30 (views that share most of their content at room scale).
   double max_angle_deg = 30.0;
 
+  // The options' names, defaults, ranges and help (util/option_table.h).
+  static const OptionTable<PoseThresholds>& Table();
   std::string Check() const;
 };
 

@@ -45,7 +45,7 @@ class EvalCommand : public Command {
     j["database"] = db_.dir;
     j["queries_from"] = source_.Describe();
     j["seed"] = options.seed;
-    j["settings"] = db.manifest().value("settings", nlohmann::json::object());
+    j["settings"] = nlohmann::json::parse(db.manifest_json()).value("settings", nlohmann::json::object());
     WriteJson(json_, j);
     return 0;
   }

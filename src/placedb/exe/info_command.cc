@@ -9,6 +9,7 @@
 #include "placedb/session/place_database.h"
 #include "placedb/util/file_io.h"
 #include "placedb/util/json_reader.h"
+#include "placedb/session/storage_view.h"
 
 namespace placedb {
 namespace cli {
@@ -26,7 +27,7 @@ class InfoCommand : public Command {
 
   int Run() override {
     const PlaceDatabase place = db_.Open();
-    const PlaceDatabase::View view = place.Read();
+    const StorageView view(place);
     const Database& db = view.database();
     const nlohmann::json& m = db.info();
     if (json_) {

@@ -624,8 +624,8 @@ TEST_F(CliTest, QueryDrawsItsMatchesAndExperimentChecksItsGrid) {
            {" --verification maybe", "--verification takes on and off"},
            {" --features orb,,surf", "empty item"},
            {" --features sift", "sift"},
-           {" --crop none,none", "crops repeats"},
-           {" --pictures 99", "num_pictures"}}) {
+           {" --crop none,none", "--crop repeats"},
+           {" --pictures 99", "--pictures must be in [0, 20] (got 99)"}}) {
     const CommandResult bad = Placedb(exp + flags);
     EXPECT_EQ(bad.code, 1) << flags;
     EXPECT_TRUE(Contains(bad.output, phrase)) << flags << ": " << bad.output;
@@ -757,7 +757,7 @@ TEST_F(CliTest, DecompressionBombsAreRefusedFromTheirHeader) {
   // The bound is an option, with a range; a simulated camera is held to it.
   const CommandResult zero = Placedb("query --db " + db + " --image " + small + " --max-image-pixels 0");
   EXPECT_EQ(zero.code, 1);
-  EXPECT_TRUE(Contains(zero.output, "max_pixels must be in [1, 1073741824]")) << zero.output;
+  EXPECT_TRUE(Contains(zero.output, "--max-image-pixels must be in [1, 2^30] (got 0)")) << zero.output;
   const CommandResult lowered =
       Placedb("query --db " + db + " --image " + kImages + "/003.jpg --max-image-pixels 1000");
   EXPECT_EQ(lowered.code, 1);

@@ -12,21 +12,6 @@
 
 namespace placedb {
 
-std::string OrbOptions::Check() const {
-  return FirstReason({CheckRange("max_features", max_features, 1, 100000),
-                      CheckRange("scale_factor", scale_factor, 1.0, 4.0, /*lo_open=*/true),
-                      CheckRange("num_levels", num_levels, 1, 32),
-                      CheckRange("edge_threshold", edge_threshold, 0, 512),
-                      CheckRange("fast_threshold", fast_threshold, 1, 255),
-                      CheckRange("patch_size", patch_size, 2, 512)});
-}
-
-std::string ExtractorOptions::Check() const {
-  if (type != FeatureType::kOrb && type != FeatureType::kSurf) return "type is unknown";
-  return FirstReason({Nested("orb", orb.Check()), Nested("surf", surf.Check()),
-                      CheckRange("upscale_below", upscale_below, 0, 4096)});
-}
-
 int DescriptorBytes(const ExtractorOptions& options) {
   if (options.type == FeatureType::kOrb) return 32;
   return (options.surf.extended ? 128 : 64) * static_cast<int>(sizeof(float));

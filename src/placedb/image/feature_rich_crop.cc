@@ -12,15 +12,6 @@
 
 namespace placedb {
 
-std::string CropOptions::Check() const {
-  return FirstReason({CheckRange("smooth_sigma", smooth_sigma, 0.0, 50.0),
-                      CheckRange("percentile", percentile, 0.0, 99.9),
-                      CheckRange("padding", padding, 0, 4096),
-                      CheckRange("min_fast_keypoints", min_fast_keypoints, 0, 100000),
-                      CheckRange("fast_threshold", fast_threshold, 1, 255),
-                      CheckRange("min_region_pixels", min_region_pixels, 1, 100000000)});
-}
-
 int CountFastKeypoints(const cv::Mat& image, int threshold, bool nonmax) {
   if (image.empty()) return 0;
   std::vector<cv::KeyPoint> keypoints;

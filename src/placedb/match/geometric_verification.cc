@@ -19,16 +19,6 @@ GeometricModel ParseGeometricModel(const std::string& name) {
                         "' (expected fundamental or homography)");
 }
 
-std::string VerifyOptions::Check() const {
-  if (model != GeometricModel::kFundamental && model != GeometricModel::kHomography)
-    return "model is unknown";
-  return FirstReason({CheckRange("num_candidates", num_candidates, 1, 1000),
-                      CheckRange("max_error_px", max_error_px, 0.0, 100.0, /*lo_open=*/true),
-                      CheckRange("confidence", confidence, 0.5, 0.999999),
-                      CheckRange("max_iterations", max_iterations, 1, 100000),
-                      CheckRange("seed", seed, 0, INT32_MAX)});
-}
-
 int MinimumMatches(GeometricModel model) { return model == GeometricModel::kHomography ? 4 : 8; }
 
 VerifyResult VerifyMatches(const std::vector<cv::Point2f>& query_points,

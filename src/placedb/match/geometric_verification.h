@@ -4,42 +4,14 @@
 // score: chance matches rarely agree on a geometry, true ones do.
 #pragma once
 
+#include "placedb/match/options.h"
+
 #include <cstdint>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
 
 namespace placedb {
-
-enum class GeometricModel { kFundamental, kHomography };
-// "fundamental" / "homography".
-const char* GeometricModelName(GeometricModel model);
-// Parses those names; throws InvalidArgument.
-GeometricModel ParseGeometricModel(const std::string& name);
-
-struct VerifyOptions {
-  // Verify the best candidates of the match stage and rank them by inliers.
-  // Default true.
-  bool enabled = true;
-  // Fundamental matrix (any static scene, the robot moving) or homography
-  // (planar scenes, pure rotation). Default fundamental.
-  GeometricModel model = GeometricModel::kFundamental;
-  // How many of the match stage's best keyframes are verified; the ranked list
-  // of a verified query holds only these. Range [1, 1000]. Default 10.
-  int num_candidates = 10;
-  // Largest distance of an inlier from its epipolar line / its projection,
-  // pixels of the query image. Range (0, 100]. Default 3.
-  double max_error_px = 3.0;
-  // RANSAC confidence. Range [0.5, 1). Default 0.999.
-  double confidence = 0.999;
-  // RANSAC iterations at most. Range [1, 100000]. Default 2000.
-  int max_iterations = 2000;
-  // Seed of RANSAC's sampling: the same seed, the same inliers, on any
-  // thread. Range [0, 2^31). Default 0.
-  int seed = 0;
-
-  std::string Check() const;
-};
 
 // Fewest matches a model can be estimated from (8 for a fundamental matrix,
 // 4 for a homography); with fewer, there is nothing to verify.

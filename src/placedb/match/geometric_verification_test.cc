@@ -289,7 +289,7 @@ TEST(GeometricVerificationTest, InvalidInputThrows) {
   VerifyOptions bad;
   bad.max_error_px = 0;
   EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { VerifyMatches(pairs.query, pairs.keyframe, bad); },
-                                          {"max_error_px"}));
+                                          {"verify_error"}));
 }
 
 // Degenerate input (all points identical; all points on one line) does not
@@ -334,26 +334,26 @@ TEST(GeometricVerificationTest, OptionsCheckRangesAndModelNames) {
     return reason.rfind(prefix, 0) == 0;
   };
   EXPECT_EQ(with([](VerifyOptions& o) { o.num_candidates = 0; }),
-            "num_candidates must be in [1, 1000] (got 0)");
+            "`verify_candidates` must be in [1, 1000] (got 0)");
   EXPECT_EQ(with([](VerifyOptions& o) { o.num_candidates = 1001; }),
-            "num_candidates must be in [1, 1000] (got 1001)");
+            "`verify_candidates` must be in [1, 1000] (got 1001)");
   EXPECT_EQ(with([](VerifyOptions& o) { o.num_candidates = 1000; }), "");
   EXPECT_EQ(with([](VerifyOptions& o) { o.max_error_px = 0; }),
-            "max_error_px must be in (0, 100] (got 0)");
+            "`verify_error` must be in (0, 100] (got 0)");
   EXPECT_TRUE(starts(
       with([](VerifyOptions& o) { o.max_error_px = std::numeric_limits<double>::quiet_NaN(); }),
-      "max_error_px must be in (0, 100]"));
+      "`verify_error` must be in (0, 100]"));
   EXPECT_EQ(with([](VerifyOptions& o) { o.max_error_px = 101; }),
-            "max_error_px must be in (0, 100] (got 101)");
+            "`verify_error` must be in (0, 100] (got 101)");
   EXPECT_EQ(with([](VerifyOptions& o) { o.max_error_px = 100; }), "");
-  EXPECT_TRUE(starts(with([](VerifyOptions& o) { o.confidence = 1.0; }), "confidence must be in"));
-  EXPECT_TRUE(starts(with([](VerifyOptions& o) { o.confidence = 0.4; }), "confidence must be in"));
+  EXPECT_TRUE(starts(with([](VerifyOptions& o) { o.confidence = 1.0; }), "`verify_confidence` must be in"));
+  EXPECT_TRUE(starts(with([](VerifyOptions& o) { o.confidence = 0.4; }), "`verify_confidence` must be in"));
   EXPECT_EQ(with([](VerifyOptions& o) { o.confidence = 0.5; }), "");
   EXPECT_EQ(with([](VerifyOptions& o) { o.max_iterations = 0; }),
-            "max_iterations must be in [1, 100000] (got 0)");
+            "`verify_iterations` must be in [1, 100000] (got 0)");
   EXPECT_TRUE(starts(with([](VerifyOptions& o) { o.max_iterations = 100001; }),
-                     "max_iterations must be in"));
-  EXPECT_TRUE(starts(with([](VerifyOptions& o) { o.seed = -1; }), "seed must be in [0, "));
+                     "`verify_iterations` must be in"));
+  EXPECT_TRUE(starts(with([](VerifyOptions& o) { o.seed = -1; }), "`verify_seed` must be in [0, "));
   EXPECT_EQ(with([](VerifyOptions& o) { o.seed = std::numeric_limits<int>::max(); }), "");
 
   EXPECT_EQ(ParseGeometricModel("fundamental"), GeometricModel::kFundamental);

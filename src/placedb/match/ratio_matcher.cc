@@ -13,12 +13,6 @@
 
 namespace placedb {
 
-std::string MatchOptions::Check() const {
-  return FirstReason({CheckRange("ratio", ratio, 0.0, 1.0, /*lo_open=*/true),
-                      CheckRange("max_hamming", max_hamming, 0, 256),
-                      CheckRange("max_l2", max_l2, 0.0, 2.0)});
-}
-
 DescriptorBlock MakeDescriptorBlock(const FeatureSet& set, std::vector<int8_t>* laplacian) {
   DescriptorBlock block;
   block.type = set.type;

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "placedb/feature/types.h"
+#include "placedb/match/options.h"
 
 namespace placedb {
 
@@ -52,33 +53,6 @@ struct GroupedFeatures {
   DescriptorBlock block;
 };
 GroupedFeatures GroupByLaplacian(const FeatureSet& set);
-
-struct MatchOptions {
-  // Lowe's ratio: nearest distance < ratio x second-nearest. Range (0, 1].
-  // Default 0.8.
-  double ratio = 0.8;
-  // ORB: a match also needs a Hamming distance of at most this many bits (of
-  // 256); 0 disables the limit. Unrelated ORB descriptors lie ~128 bits
-  // apart and true matches mostly under 50, so the limit removes the chance
-  // matches whose number would otherwise grow with a keyframe's feature
-  // count. Range [0, 256]. Default 64.
-  int max_hamming = 64;
-  // SURF: a match also needs an L2 distance of at most this (descriptors are
-  // unit vectors, unrelated ones ~0.5-0.7 apart); 0 disables the limit.
-  // Range [0, 2]. Default 0.25.
-  double max_l2 = 0.25;
-  // SURF: never match descriptors whose Laplacian signs differ. Default true.
-  bool use_laplacian_sign = true;
-  // Each keyframe descriptor keeps at most one match, its closest query
-  // descriptor (ties: the lower query index). Default true.
-  bool one_to_one = true;
-  // The sparse-keyframe guard (see the top of this file): a match must also
-  // be mutual and pass the ratio test against the query's descriptors.
-  // Default true.
-  bool cross_check = true;
-
-  std::string Check() const;
-};
 
 // Matches `query` against the descriptors `db` of one keyframe by the rules
 // above and returns the number of matches; appends them (queryIdx, trainIdx,

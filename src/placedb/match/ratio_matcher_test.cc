@@ -439,18 +439,18 @@ TEST(RatioMatcherTest, CheckRejectsOutOfRangeOptions) {
   };
   const std::string nan_reason =
       with([](MatchOptions& o) { o.ratio = std::numeric_limits<double>::quiet_NaN(); });
-  EXPECT_EQ(nan_reason.rfind("ratio must be in (0, 1] (got ", 0), 0u) << nan_reason;
-  EXPECT_EQ(with([](MatchOptions& o) { o.ratio = 0; }), "ratio must be in (0, 1] (got 0)");
-  EXPECT_EQ(with([](MatchOptions& o) { o.ratio = 1.5; }), "ratio must be in (0, 1] (got 1.5)");
+  EXPECT_EQ(nan_reason.rfind("`ratio` must be in (0, 1] (got ", 0), 0u) << nan_reason;
+  EXPECT_EQ(with([](MatchOptions& o) { o.ratio = 0; }), "`ratio` must be in (0, 1] (got 0)");
+  EXPECT_EQ(with([](MatchOptions& o) { o.ratio = 1.5; }), "`ratio` must be in (0, 1] (got 1.5)");
   EXPECT_EQ(with([](MatchOptions& o) { o.ratio = 1.0; }), "");
   EXPECT_EQ(with([](MatchOptions& o) { o.max_hamming = -1; }),
-            "max_hamming must be in [0, 256] (got -1)");
+            "`max_hamming` must be in [0, 256] (got -1)");
   EXPECT_EQ(with([](MatchOptions& o) { o.max_hamming = 257; }),
-            "max_hamming must be in [0, 256] (got 257)");
+            "`max_hamming` must be in [0, 256] (got 257)");
   EXPECT_EQ(with([](MatchOptions& o) { o.max_hamming = 0; }), "");
   EXPECT_EQ(with([](MatchOptions& o) { o.max_hamming = 256; }), "");
-  EXPECT_EQ(with([](MatchOptions& o) { o.max_l2 = -0.1; }), "max_l2 must be in [0, 2] (got -0.1)");
-  EXPECT_EQ(with([](MatchOptions& o) { o.max_l2 = 3; }), "max_l2 must be in [0, 2] (got 3)");
+  EXPECT_EQ(with([](MatchOptions& o) { o.max_l2 = -0.1; }), "`max_l2` must be in [0, 2] (got -0.1)");
+  EXPECT_EQ(with([](MatchOptions& o) { o.max_l2 = 3; }), "`max_l2` must be in [0, 2] (got 3)");
   EXPECT_EQ(with([](MatchOptions& o) { o.max_l2 = 2; }), "");
 }
 

@@ -264,7 +264,7 @@ KeyframeInfo GetKeyframe(const PlaceDatabase& db, int32_t id) {
 }
 
 int DescriptorColumns(const PlaceDatabase& db) {
-  const int bytes = db.Read().database().descriptor_bytes();
+  const int bytes = db.descriptor_bytes();
   return db.feature_type() == FeatureType::kOrb ? bytes : bytes / static_cast<int>(sizeof(float));
 }
 
@@ -762,7 +762,7 @@ PYBIND11_MODULE(placedb, m) {
                              "float32)")
       .def_property_readonly("directory", &PlaceDatabase::directory)
       .def_property_readonly(
-          "manifest", [](const PlaceDatabase& db) { return FromJson(db.manifest()); },
+          "manifest", [](const PlaceDatabase& db) { return FromJson(nlohmann::json::parse(db.manifest_json())); },
           "the manifest (every build setting, counts, sizes, creation info), a dict")
       .def_property_readonly(
           "keyframe_ids",

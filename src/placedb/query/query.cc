@@ -8,6 +8,7 @@
 #include <mutex>
 #include <unordered_set>
 
+#include "placedb/query/order.h"
 #include "placedb/retrieval/clusters.h"
 #include "placedb/util/check.h"
 #include "placedb/util/json_reader.h"
@@ -17,21 +18,7 @@
 
 namespace placedb {
 namespace fs = std::filesystem;
-
-std::string QueryOptions::Check() const {
-  return FirstReason(
-      {CheckRange("top_k", top_k, 1, 10000), CheckRange("min_matches", min_matches, 1, 100000),
-       Nested("retrieval", retrieval.Check()), Nested("match", match.Check()),
-       Nested("verify", verify.Check()), CheckRange("min_score", min_score, 0.0, 100000.0),
-       CheckRange("deadline_ms", deadline_ms, 0.0, 1e7), Nested("prior", prior.Check())});
-}
-
-std::string QueryPrior::Check() const {
-  if (keyframe_id < 0) return "keyframe_id must be >= 0 (got " + std::to_string(keyframe_id) + ")";
-  if (pose && (!pose->translation.allFinite() || !pose->rotation.coeffs().allFinite()))
-    return "pose is not finite";
-  return "";
-}
+using namespace query_order;  // NOLINT: the rules the stages apply
 
 void CandidateCost::Report(double worst_ms) {
   double old = ms_.load();
@@ -43,127 +30,6 @@ QueryOptions QueryOptions::ForPartition() const {
   QueryOptions o = *this;
   if (verify.enabled) o.top_k = std::max(top_k, verify.num_candidates);
   return o;
-}
-
-bool RankedKeyframe::operator==(const RankedKeyframe& o) const {
-  const bool same_pose = pose.has_value() == o.pose.has_value() &&
-                         (!pose || (pose->translation == o.pose->translation &&
-                                    pose->rotation.coeffs() == o.pose->rotation.coeffs()));
-  return keyframe_id == o.keyframe_id && score == o.score && num_matches == o.num_matches &&
-         num_inliers == o.num_inliers && same_pose && timestamp == o.timestamp &&
-         source == o.source && stored_image == o.stored_image;
-}
-
-// ---- JSON -------------------------------------------------------------------
-namespace {
-
-nlohmann::json PoseToJson(const std::optional<Pose>& pose) {
-  if (!pose) return nullptr;
-  const auto& t = pose->translation;
-  const auto& q = pose->rotation;
-  return {{"translation", {t.x(), t.y(), t.z()}},
-          {"quaternion_xyzw", {q.x(), q.y(), q.z(), q.w()}}};
-}
-
-std::optional<Pose> PoseFromJson(const JsonReader& parent, const char* key) {
-  if (parent.Member(key).is_null()) return std::nullopt;
-  const JsonReader j = parent.Child(key);
-  auto vec = [&](const char* name, size_t n) {
-    const nlohmann::json& a = j.Member(name);
-    if (!a.is_array() || a.size() != n)
-      j.Fail(name, "is not an array of " + std::to_string(n) + " numbers");
-    std::vector<double> v;
-    for (const auto& x : a) {
-      if (!x.is_number() || !std::isfinite(x.get<double>()))
-        j.Fail(name, "holds a value that is not a finite number");
-      v.push_back(x.get<double>());
-    }
-    return v;
-  };
-  const std::vector<double> t = vec("translation", 3);
-  const std::vector<double> q = vec("quaternion_xyzw", 4);
-  Pose pose;
-  pose.translation = Eigen::Vector3d(t[0], t[1], t[2]);
-  pose.rotation = Eigen::Quaterniond(q[3], q[0], q[1], q[2]);
-  if (std::abs(pose.rotation.norm() - 1.0) > 1e-3)
-    j.Fail("quaternion_xyzw", "is not a unit quaternion");
-  return pose;
-}
-
-RankedKeyframe RankedFromJson(const JsonReader& j) {
-  RankedKeyframe r;
-  r.keyframe_id = static_cast<int32_t>(j.Integer("keyframe_id", INT32_MIN, INT32_MAX));
-  r.score = j.Number("score");
-  r.num_matches = static_cast<int>(j.Integer("num_matches", 0, INT32_MAX));
-  r.num_inliers = static_cast<int>(j.Integer("num_inliers", -1, INT32_MAX));
-  r.pose = PoseFromJson(j, "pose");
-  r.timestamp = j.Number("timestamp");
-  r.source = j.String("source");
-  r.stored_image = j.String("stored_image");
-  if (r.num_inliers > r.num_matches) j.Fail("num_inliers", "exceeds num_matches");
-  return r;
-}
-
-}  // namespace
-
-void to_json(nlohmann::json& j, const RankedKeyframe& r) {
-  j = {
-      {"keyframe_id", r.keyframe_id}, {"score", r.score},         {"num_matches", r.num_matches},
-      {"num_inliers", r.num_inliers}, {"verified", r.verified()}, {"pose", PoseToJson(r.pose)},
-      {"timestamp", r.timestamp},     {"source", r.source},       {"stored_image", r.stored_image}};
-}
-
-void from_json(const nlohmann::json& j, RankedKeyframe& r) {
-  r = RankedFromJson(JsonReader(j, "ranked keyframe"));
-}
-
-void to_json(nlohmann::json& j, const QueryResult& r) {
-  j = nlohmann::json::object();
-  j["matched"] = r.matched;
-  j["best"] = r.best() ? nlohmann::json(*r.best()) : nlohmann::json(nullptr);
-  j["ranked"] = r.ranked;
-  j["num_query_features"] = r.num_query_features;
-  j["num_keyframes"] = r.num_keyframes;
-  j["num_examined"] = r.num_examined;
-  j["num_verified"] = r.num_verified;
-  j["coverage"] = r.coverage;
-  j["deadline_reached"] = r.deadline_reached;
-  j["search"] = r.search;
-  j["cluster"] = r.cluster;
-  j["times_ms"] = {{"extract", r.times.extract_ms},
-                   {"retrieve", r.times.retrieve_ms},
-                   {"match", r.times.match_ms},
-                   {"verify", r.times.verify_ms},
-                   {"total", r.times.total_ms}};
-}
-
-void from_json(const nlohmann::json& json, QueryResult& out) {
-  const JsonReader j(json, "query result");
-  QueryResult r;
-  r.matched = j.Boolean("matched");
-  const nlohmann::json& ranked = j.Member("ranked");
-  if (!ranked.is_array()) j.Fail("ranked", "is not an array");
-  for (size_t i = 0; i < ranked.size(); ++i) {
-    r.ranked.push_back(
-        RankedFromJson(JsonReader(ranked[i], j.where() + ".ranked[" + std::to_string(i) + "]")));
-  }
-  if (r.matched && r.ranked.empty()) j.Fail("matched", "is true but nothing is ranked");
-  r.num_query_features = static_cast<int>(j.Integer("num_query_features", 0, INT32_MAX));
-  r.num_keyframes = static_cast<size_t>(j.Integer("num_keyframes", 0, INT64_MAX));
-  r.num_examined = static_cast<size_t>(j.Integer("num_examined", 0, INT64_MAX));
-  r.num_verified = static_cast<size_t>(j.Integer("num_verified", 0, INT64_MAX));
-  r.coverage = j.Number("coverage");
-  if (r.coverage < 0.0 || r.coverage > 1.0) j.Fail("coverage", "is not in [0, 1]");
-  r.deadline_reached = j.Boolean("deadline_reached");
-  r.search = j.String("search");
-  r.cluster = static_cast<int>(j.Integer("cluster", -1, INT32_MAX));
-  const JsonReader t = j.Child("times_ms");
-  r.times.extract_ms = t.Number("extract");
-  r.times.retrieve_ms = t.Number("retrieve");
-  r.times.match_ms = t.Number("match");
-  r.times.verify_ms = t.Number("verify");
-  r.times.total_ms = t.Number("total");
-  out = std::move(r);
 }
 
 // ---- the pipeline -------------------------------------------------------------
@@ -218,16 +84,6 @@ struct Examined {
   std::vector<cv::DMatch> matches;
 };
 
-// Match-stage order: more matches first, then the lower id.
-bool MoreMatches(int32_t id_a, int a, int32_t id_b, int b) { return a != b ? a > b : id_a < id_b; }
-
-// Final order: verified ones by inliers, then matches, then id; unverified by
-// matches, then id.
-bool RanksFirst(const RankedKeyframe& a, const RankedKeyframe& b) {
-  if (a.score != b.score) return a.score > b.score;
-  return MoreMatches(a.keyframe_id, a.num_matches, b.keyframe_id, b.num_matches);
-}
-
 void KeepBest(std::vector<Examined>* list, size_t keep) {
   auto order = [](const Examined& a, const Examined& b) {
     return MoreMatches(a.id, a.num_matches, b.id, b.num_matches);
@@ -254,22 +110,6 @@ VerifyResult VerifyKeyframe(const Database& db, size_t index, const FeatureSet& 
     t.push_back(k.ToOriginal(keypoints[m.trainIdx].pt));
   }
   return VerifyMatches(q, t, options);
-}
-
-void Decide(QueryResult* r, const QueryOptions& options) {
-  r->matched = !r->ranked.empty() && r->ranked.front().score >= options.min_score;
-}
-
-double CoverageOf(const QueryResult& r) {
-  return r.num_keyframes == 0
-             ? 0.0
-             : static_cast<double>(r.num_examined) / static_cast<double>(r.num_keyframes);
-}
-
-// How many of the match stage's best keyframes go on.
-size_t KeptAfterMatching(const QueryOptions& options) {
-  return static_cast<size_t>(options.verify.enabled ? options.verify.num_candidates
-                                                    : options.top_k);
 }
 
 // The ranked entry of an examined keyframe (its score the matches until
@@ -667,55 +507,6 @@ QueryResult QueryDatabase(const Database& db, const FeatureSet& query, const Que
           : RunStages(db, query, options, context, restriction, *retriever, clock);
   result.times.total_ms = clock.ElapsedMs();
   return result;
-}
-
-QueryResult MergeQueryResults(const std::vector<QueryResult>& parts, const QueryOptions& options) {
-  PLACEDB_CHECK_OPTIONS(options);
-  QueryResult merged;
-  std::vector<RankedKeyframe> all;
-  std::unordered_set<int32_t> seen;
-  for (const QueryResult& p : parts) {
-    merged.num_query_features = std::max(merged.num_query_features, p.num_query_features);
-    merged.num_keyframes += p.num_keyframes;
-    merged.num_examined += p.num_examined;
-    merged.num_verified += p.num_verified;
-    merged.times.extract_ms = std::max(merged.times.extract_ms, p.times.extract_ms);
-    merged.times.retrieve_ms = std::max(merged.times.retrieve_ms, p.times.retrieve_ms);
-    merged.times.match_ms = std::max(merged.times.match_ms, p.times.match_ms);
-    merged.times.verify_ms = std::max(merged.times.verify_ms, p.times.verify_ms);
-    merged.times.total_ms = std::max(merged.times.total_ms, p.times.total_ms);
-    merged.deadline_reached = merged.deadline_reached || p.deadline_reached;
-    for (const RankedKeyframe& r : p.ranked) {
-      if (!seen.insert(r.keyframe_id).second) {
-        PLACEDB_THROW_INVALID("keyframe ", r.keyframe_id,
-                              " is in two partial results (partitions must be disjoint)");
-      }
-      if (r.verified() != options.verify.enabled) {
-        PLACEDB_THROW_INVALID("keyframe ", r.keyframe_id, " is ",
-                              r.verified() ? "verified" : "not verified", " but the merge options ",
-                              options.verify.enabled ? "" : "do not ", "verify");
-      }
-      all.push_back(r);
-    }
-  }
-  // The whole database's match-stage survivors are the best of the parts'
-  // (each part kept its own best, which include all of the global best).
-  const size_t keep = KeptAfterMatching(options);
-  auto more_matches = [](const RankedKeyframe& a, const RankedKeyframe& b) {
-    return MoreMatches(a.keyframe_id, a.num_matches, b.keyframe_id, b.num_matches);
-  };
-  std::sort(all.begin(), all.end(), more_matches);
-  if (all.size() > keep) all.resize(keep);
-  std::sort(all.begin(), all.end(), RanksFirst);
-  if (all.size() > static_cast<size_t>(options.top_k)) all.resize(options.top_k);
-  merged.ranked = std::move(all);
-  Decide(&merged, options);
-  merged.coverage = CoverageOf(merged);
-  if (!parts.empty()) {
-    merged.search = parts.front().search;
-    merged.cluster = parts.front().cluster;
-  }
-  return merged;
 }
 
 MatchDetail MatchKeyframe(const Database& db, const FeatureSet& query, size_t index,

@@ -159,10 +159,6 @@ double BowScore(const BowVector& a, const BowVector& b) {
   return score;
 }
 
-std::string BowIndexOptions::Check() const {
-  return CheckRange("direct_level", direct_level, 0, 8);
-}
-
 BowIndex BowIndex::Build(std::shared_ptr<const Vocabulary> vocabulary, const Database& db,
                          const BowIndexOptions& options, ThreadPool* pool, ProgressBar* progress) {
   PLACEDB_CHECK(vocabulary != nullptr, "a bag-of-words index needs a vocabulary");

@@ -40,6 +40,7 @@
 #include "placedb/util/mapped_file.h"
 #include "placedb/util/span.h"
 #include "placedb/util/timer.h"
+#include "placedb/retrieval/options.h"
 
 namespace placedb {
 
@@ -63,15 +64,6 @@ struct BowVector {
 // / 2 (which is min(a_w, b_w) for positive weights), in word order, in double.
 // 0 when no word is shared. Both vectors must be sorted by word.
 double BowScore(const BowVector& a, const BowVector& b);
-
-struct BowIndexOptions {
-  // Level of the direct index's nodes (0 = the root, which puts every row
-  // under one node). Range [0, 8], and at most the vocabulary's depth (Build
-  // checks). Default 2.
-  int direct_level = 2;
-
-  std::string Check() const;
-};
 
 // The index file's magic, format version and header (see the top of this
 // file).

@@ -8,12 +8,6 @@
 
 namespace placedb {
 
-std::string ClusterOptions::Check() const {
-  if (!(radius_m > 0.0)) return "radius_m must be > 0 (got " + std::to_string(radius_m) + ")";
-  return FirstReason({CheckRange("radius_m", radius_m, 0.0, 1e6),
-                      CheckRange("time_keyframes", time_keyframes, 1, 1000000)});
-}
-
 namespace {
 
 // Grid cell of a coordinate, clamped so that far-away poses cannot overflow.

@@ -21,19 +21,9 @@
 
 #include "placedb/storage/database.h"
 #include "placedb/util/pose.h"
+#include "placedb/retrieval/options.h"
 
 namespace placedb {
-
-struct ClusterOptions {
-  // Radius of a cluster around its seed, in the poses' unit (metres). Range
-  // (0, 1e6]. Default 1.0.
-  double radius_m = 1.0;
-  // Keyframes per cluster when there are no poses. Range [1, 1000000].
-  // Default 20.
-  int time_keyframes = 20;
-
-  std::string Check() const;
-};
 
 class ClusterSet {
  public:

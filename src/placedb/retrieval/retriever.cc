@@ -28,17 +28,6 @@ RetrievalMethod ParseRetrievalMethod(const std::string& name) {
   PLACEDB_THROW_INVALID("unknown search method '", name, "' (expected exhaustive, bow or cluster)");
 }
 
-std::string RetrievalOptions::Check() const {
-  if (method != RetrievalMethod::kExhaustive && method != RetrievalMethod::kBow &&
-      method != RetrievalMethod::kCluster) {
-    return "method is unknown";
-  }
-  return FirstReason({CheckRange("bow_candidates", bow_candidates, 1, 100000),
-                      CheckRange("guided_candidates", guided_candidates, 0, 100000),
-                      CheckRange("cluster_hops", cluster_hops, 0, 64),
-                      CheckRange("cluster_fallback_score", cluster_fallback_score, 0.0, 100000.0)});
-}
-
 namespace {
 
 class ExhaustiveRetriever : public Retriever {

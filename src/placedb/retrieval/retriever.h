@@ -17,42 +17,11 @@
 #include "placedb/storage/database.h"
 #include "placedb/match/ratio_matcher.h"
 #include "placedb/util/timer.h"
+#include "placedb/retrieval/options.h"
 
 namespace placedb {
 
 class GrowingBowIndex;
-
-enum class RetrievalMethod { kExhaustive, kBow, kCluster };
-// "exhaustive", "bow", "cluster".
-const char* RetrievalMethodName(RetrievalMethod method);
-// Parses a name; throws InvalidArgument naming the known ones.
-RetrievalMethod ParseRetrievalMethod(const std::string& name);
-
-struct RetrievalOptions {
-  // How candidates are chosen. Default exhaustive.
-  RetrievalMethod method = RetrievalMethod::kExhaustive;
-  // bow (and cluster over a database with a BoW index): keyframes passed on
-  // to matching, best bag-of-words score first. Range [1, 100000]. Default 40.
-  int bow_candidates = 40;
-  // bow and cluster: of those, the ones with the most guided matches (query
-  // and keyframe features under the same vocabulary node at the index's
-  // direct level, CountGuidedMatches) go on to the full match stage, at a
-  // small share of its cost; 0 = all of them, in bag-of-words order. Range
-  // [0, 100000]. Default 5: on data/rtabmap_loop and on the scale
-  // benchmark's augmented sets, recall@1 with 5 equals that with 10 (and
-  // that of exhaustive search) for half the match and verify work (README,
-  // "Retrieval at scale", the "guided 10" rows).
-  int guided_candidates = 5;
-  // cluster: the prior's cluster and its neighbours up to this many hops of
-  // the neighbour graph are searched first. Range [0, 64]. Default 1.
-  int cluster_hops = 1;
-  // cluster: a local answer whose score is below this falls back to a global
-  // search (a local "no match" always does). Range [0, 100000]; 0 = the
-  // query's min_score. Default 0.
-  double cluster_fallback_score = 0.0;
-
-  std::string Check() const;
-};
 
 // A keyframe to examine: its index in the database and the retriever's prior
 // score (higher first; 0 for exhaustive search).

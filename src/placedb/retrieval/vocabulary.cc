@@ -319,22 +319,6 @@ Rows SampleRows(const std::vector<DescriptorBlock>& blocks, const VocabularyOpti
 
 }  // namespace
 
-std::string VocabularyOptions::Check() const {
-  std::string words;
-  if (branching >= 2 && branching <= 64 && depth >= 1 && depth <= 8) {
-    double count = 1.0;
-    for (int d = 0; d < depth; ++d) count *= branching;
-    if (count > double{1 << 24}) {
-      words = "branching^depth must be at most 2^24 words (got " + std::to_string(branching) + "^" +
-              std::to_string(depth) + ")";
-    }
-  }
-  return FirstReason(
-      {CheckRange("branching", branching, 2, 64), CheckRange("depth", depth, 1, 8), words,
-       CheckRange("iterations", iterations, 1, 100),
-       CheckRange("max_training_descriptors", max_training_descriptors, 1000, 100000000)});
-}
-
 uint64_t Vocabulary::TrainingWork(const std::vector<DescriptorBlock>& blocks,
                                   const VocabularyOptions& options) {
   const uint64_t sample =

@@ -45,31 +45,12 @@
 #include "placedb/match/ratio_matcher.h"
 #include "placedb/storage/flat_file.h"
 #include "placedb/util/mapped_file.h"
+#include "placedb/retrieval/options.h"
 
 namespace placedb {
 
 class ThreadPool;
 class ProgressBar;
-
-struct VocabularyOptions {
-  // k, the children of each node. Range [2, 64]. Default 10.
-  int branching = 10;
-  // Levels below the root (words are at most this deep). Range [1, 8], and
-  // branching^depth <= 2^24 words. Default 5.
-  int depth = 5;
-  // Clustering (k-majority / k-means) iterations per node; a node stops
-  // earlier when no row changes cluster. Range [1, 100]. Default 10.
-  int iterations = 10;
-  // Training uses a random sample of at most this many descriptor rows (all
-  // of them when there are fewer); the IDF weights count every row. Range
-  // [1000, 100000000]. Default 1000000.
-  int max_training_descriptors = 1000000;
-  // Everything random in training derives from it (std::mt19937_64). Any
-  // value. Default 1.
-  uint64_t seed = 1;
-
-  std::string Check() const;
-};
 
 // The vocabulary file's header (see the top of this file).
 struct VocabularyFileHeader {

@@ -202,11 +202,11 @@ TEST(VocabularyOptions, CheckRejectsOutOfRange) {
             std::string::npos);
   EXPECT_NE(reason([](VocabularyOptions& o) {
               o.max_training_descriptors = 999;
-            }).find("max_training_descriptors"),
+            }).find("vocabulary_sample"),
             std::string::npos);
   EXPECT_NE(reason([](VocabularyOptions& o) {
               o.max_training_descriptors = 100000001;
-            }).find("max_training_descriptors"),
+            }).find("vocabulary_sample"),
             std::string::npos);
   const Synthetic s = MakeOrb(5, 10, 4, 1);
   EXPECT_TRUE(ThrowsWith<InvalidArgument>(

@@ -473,7 +473,7 @@ TEST_F(RosSystemTest, MalformedMessagesAreDroppedOncePerCause) {
   sensor_msgs::Image short_data = BgrToImageMessage(good, h);
   short_data.data.resize(100);
   placedb_msgs::PartialResult unknown_partition;
-  unknown_partition.database_id = PlaceDatabase::Open(Db()).Read().database().keyframes_file();
+  unknown_partition.database_id = PlaceDatabase::Open(Db()).generation();
   unknown_partition.partition = 5;
   unknown_partition.num_partitions = 1;
   unknown_partition.scheme = "contiguous";

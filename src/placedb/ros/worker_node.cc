@@ -27,7 +27,7 @@ class Worker {
       : db_(std::move(db)),
         options_(std::move(options)),
         partition_(std::move(partition)),
-        database_id_(db_.Read().database().keyframes_file()),
+        database_id_(db_.generation()),
         drops_("placedb_worker"),
         it_(nh_) {
     results_ = nh_.advertise<placedb_msgs::PartialResult>("partial_results", 100);
@@ -162,10 +162,10 @@ int main(int argc, char** argv) {
     // OpenCV's own threads would only compete with the other workers.
     cv::setNumThreads(1);
     placedb::PlaceDatabase opened = db.Open();
-    const placedb::KeyframeSubset partition = opened.Read().database().subset();
+    const placedb::KeyframeSubset partition = opened.subset();
     ROS_INFO("placedb_worker: %s of %s, %zu keyframes, %zu features, input %s",
              partition.Describe().c_str(), db.dir.c_str(), opened.size(),
-             opened.Read().database().num_features(), input.c_str());
+             opened.num_features(), input.c_str());
     placedb::Worker worker(std::move(opened), query.Get(), partition, input);
     ros::spin();
     return 0;

@@ -16,8 +16,11 @@
 #include <thread>
 
 #include "placedb/dataset/image_folder.h"
+#include "placedb/build/builder.h"
+#include "placedb/query/query.h"
 #include "placedb/session/place_database.h"
 #include "placedb/util/testing.h"
+#include "placedb/session/storage_view.h"
 
 namespace placedb {
 namespace {
@@ -185,7 +188,7 @@ TEST_P(OnlineTest, TwoWritersSaveAndFourReadersAtOnce) {
       // Snapshots stay valid whatever the writers do next.
       const std::optional<Keyframe> k = db.FindKeyframe(5 + r);
       if (k) EXPECT_EQ(k->id, 5 + r);
-      EXPECT_FALSE(db.manifest().empty());
+      EXPECT_FALSE(StorageView(db).database().info().empty());
     }
   };
   // Writer 1 adds 31..37 and removes 1..4; writer 2 adds 38..43 and removes
@@ -320,11 +323,11 @@ TEST_P(OnlineTest, DeadlineCountsTheWaitForAWriter) {
   // again (a nested read behind the waiting writer must not deadlock).
   std::atomic<int> stage{0};  // 1: holding, 2: read again, 3: nested read done, 4: release
   std::thread holder([&] {
-    const PlaceDatabase::View view = db.Read();
+    const StorageView view(db);
     stage = 1;
     while (stage.load() < 2) std::this_thread::yield();
     EXPECT_TRUE(db.FindKeyframe(5));
-    EXPECT_EQ(db.manifest()["counts"]["keyframes"], 30);
+    EXPECT_EQ(StorageView(db).database().info()["counts"]["keyframes"], 30);
     stage = 3;
     while (stage.load() < 4) std::this_thread::yield();
   });
@@ -459,7 +462,7 @@ TEST_P(OnlineTest, NoDebrisSurvivesTheNextOpenAfterKills) {
     ASSERT_TRUE(WIFSIGNALED(status)) << "the writer ended by itself, code " << WEXITSTATUS(status);
 
     const PlaceDatabase db = PlaceDatabase::Open(dir);
-    const nlohmann::json manifest = db.manifest();
+    const nlohmann::json manifest = StorageView(db).database().info();
     std::set<std::string> named = {"manifest.json", "images",
                                    manifest["files"]["keyframes"].get<std::string>()};
     if (manifest.contains("index")) {

@@ -1,5 +1,10 @@
 #include "placedb/session/place_database.h"
 
+#include "placedb/build/builder.h"
+#include "placedb/feature/extractor.h"
+#include "placedb/query/query.h"
+#include "placedb/session/storage_view.h"
+
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
@@ -23,11 +28,6 @@
 namespace placedb {
 namespace fs = std::filesystem;
 
-std::string OpenOptions::Check() const {
-  return FirstReason({Nested("subset", subset.Check()), CheckRange("threads", threads, 0, 1024),
-                      Nested("clusters", clusters.Check())});
-}
-
 struct PlaceDatabase::Impl {
   ~Impl();
 
@@ -35,6 +35,9 @@ struct PlaceDatabase::Impl {
   // Fixed at open (read without the lock: Save swaps `db`).
   bool whole = true;                 // opened on the whole database
   std::string subset_description;   // what it was opened on, when not
+  KeyframeSubset subset;
+  int descriptor_bytes = 32;
+  bool keyframe_table = false;       // opened without features: no queries
   FeatureType feature_type = FeatureType::kOrb;
   Database db;
   BuildOptions build;
@@ -156,10 +159,19 @@ PlaceDatabase PlaceDatabase::Open(const std::string& dir, const OpenOptions& opt
   PLACEDB_CHECK_OPTIONS(options);
   auto impl = std::make_unique<Impl>();
   impl->dir = dir;
-  impl->db = Database::Load(dir, options.subset);
+  LoadOptions load;
+  load.subset = options.subset;
+  load.contents = options.keyframe_table ? LoadContents::kKeyframeTable : LoadContents::kAll;
+  impl->db = Database::Load(dir, load);
   const Database& db = impl->db;
-  impl->whole = db.subset().all();
-  if (!impl->whole) impl->subset_description = db.subset().Describe();
+  impl->keyframe_table = options.keyframe_table;
+  impl->subset = db.subset();
+  impl->descriptor_bytes = db.descriptor_bytes();
+  impl->whole = db.subset().all() && !options.keyframe_table;
+  if (!impl->whole) {
+    impl->subset_description =
+        options.keyframe_table ? "its keyframe table" : db.subset().Describe();
+  }
   impl->feature_type = db.feature_type();
   if (options.expected_features && *options.expected_features != db.feature_type()) {
     PLACEDB_THROW_INVALID("the database at ", dir, " holds ", FeatureTypeName(db.feature_type()),
@@ -183,14 +195,16 @@ PlaceDatabase PlaceDatabase::Open(const std::string& dir, const OpenOptions& opt
   const int threads = options.threads == 0 ? ThreadPool::HardwareThreads() : options.threads;
   if (threads > 1) impl->pool = std::make_unique<ThreadPool>(threads);
   impl->open = options;
-  std::optional<BowIndex> bow =
-      OpenBowIndex(dir, db, impl->build, impl->pool.get(), &impl->vocabulary);
-  if (bow) impl->bow.emplace(std::move(*bow));
+  if (!options.keyframe_table) {
+    std::optional<BowIndex> bow =
+        OpenBowIndex(dir, db, impl->build, impl->pool.get(), &impl->vocabulary);
+    if (bow) impl->bow.emplace(std::move(*bow));
+  }
   impl->clusters = ClusterSet::Make(db, options.clusters);
   impl->removed.assign(db.size(), 0);
   // Debris of killed writers goes, unless another process is changing the
   // database (its files in progress are not debris) or we may not write.
-  if (db.subset().all() && ::access(dir.c_str(), W_OK) == 0) {
+  if (impl->whole && ::access(dir.c_str(), W_OK) == 0) {
     if (const std::unique_ptr<DirectoryLock> lock = DirectoryLock::TryLock(dir)) {
       SweepDebris(dir, db);
     }
@@ -202,11 +216,32 @@ const std::string& PlaceDatabase::directory() const { return impl_->dir; }
 const BuildOptions& PlaceDatabase::build_options() const { return impl_->build; }
 const ExtractorOptions& PlaceDatabase::extractor_options() const { return impl_->build.features; }
 FeatureType PlaceDatabase::feature_type() const { return impl_->feature_type; }
-ThreadPool* PlaceDatabase::pool() const { return impl_->pool.get(); }
+const KeyframeSubset& PlaceDatabase::subset() const { return impl_->subset; }
+int PlaceDatabase::descriptor_bytes() const { return impl_->descriptor_bytes; }
 
-nlohmann::json PlaceDatabase::manifest() const {
+std::string PlaceDatabase::manifest_json(int indent) const {
   std::shared_lock<FairSharedMutex> lock(impl_->state);
-  return impl_->db.info();
+  return DumpJson(impl_->db.info(), indent);
+}
+
+std::string PlaceDatabase::generation() const {
+  std::shared_lock<FairSharedMutex> lock(impl_->state);
+  return impl_->db.keyframes_file();
+}
+
+uint64_t PlaceDatabase::keyframes_bytes() const {
+  std::shared_lock<FairSharedMutex> lock(impl_->state);
+  return impl_->db.keyframes_bytes();
+}
+
+size_t PlaceDatabase::num_features() const {
+  std::shared_lock<FairSharedMutex> lock(impl_->state);
+  if (impl_->num_removed == 0) return impl_->db.num_features();
+  size_t n = 0;
+  for (size_t i = 0; i < impl_->db.size(); ++i) {
+    if (!impl_->removed[i]) n += impl_->db.FeatureCount(i);
+  }
+  return n;
 }
 
 size_t PlaceDatabase::size() const {
@@ -231,6 +266,16 @@ std::vector<int32_t> PlaceDatabase::keyframe_ids() const {
   return ids;
 }
 
+std::vector<Keyframe> PlaceDatabase::keyframes() const {
+  std::shared_lock<FairSharedMutex> lock(impl_->state);
+  std::vector<Keyframe> keyframes;
+  keyframes.reserve(impl_->db.size() - impl_->num_removed);
+  for (size_t i = 0; i < impl_->db.size(); ++i) {
+    if (!impl_->removed[i]) keyframes.push_back(impl_->db.keyframe(i));
+  }
+  return keyframes;
+}
+
 FeatureSet PlaceDatabase::KeyframeFeatures(int32_t id) const {
   std::shared_lock<FairSharedMutex> lock(impl_->state);
   const int index = impl_->db.IndexOfId(id);
@@ -240,19 +285,15 @@ FeatureSet PlaceDatabase::KeyframeFeatures(int32_t id) const {
   return impl_->db.Features(static_cast<size_t>(index));
 }
 
-const std::vector<uint8_t>* PlaceDatabase::View::excluded() const {
-  return num_removed_ > 0 ? removed_ : nullptr;
-}
-
-PlaceDatabase::View PlaceDatabase::Read() const {
-  View view;
-  view.lock_ = std::shared_lock<FairSharedMutex>(impl_->state);
-  view.db_ = &impl_->db;
-  view.bow_ = impl_->bow ? &*impl_->bow : nullptr;
-  view.clusters_ = &impl_->clusters;
-  view.removed_ = &impl_->removed;
-  view.num_removed_ = impl_->num_removed;
-  return view;
+StorageView::StorageView(const PlaceDatabase& session) {
+  PlaceDatabase::Impl& impl = *session.impl_;
+  lock_ = std::shared_lock<FairSharedMutex>(impl.state);
+  db_ = &impl.db;
+  bow_ = impl.bow ? &*impl.bow : nullptr;
+  clusters_ = &impl.clusters;
+  removed_ = &impl.removed;
+  num_removed_ = impl.num_removed;
+  pool_ = impl.pool.get();
 }
 
 std::string PlaceDatabase::StoredImagePath(const Keyframe& keyframe) const {
@@ -270,9 +311,13 @@ FeatureSet PlaceDatabase::Extract(const cv::Mat& image) const {
   return impl_->extractor->Extract(image);
 }
 
-QueryResult PlaceDatabase::Run(const FeatureSet& features, const std::vector<uint32_t>* among,
+QueryResult PlaceDatabase::Run(const FeatureSet& features, const std::vector<int32_t>* among_ids,
                                const QueryOptions& options, double extract_ms) const {
   PLACEDB_CHECK_OPTIONS(options);
+  if (impl_->keyframe_table) {
+    PLACEDB_THROW_INVALID("the database at ", impl_->dir,
+                          " was opened as a keyframe table (`keyframe_table`): it cannot query");
+  }
   // The deadline's clock starts before the wait for a writer to publish.
   const Timer clock;
   std::shared_lock<FairSharedMutex> lock(impl_->state, std::defer_lock);
@@ -292,10 +337,22 @@ QueryResult PlaceDatabase::Run(const FeatureSet& features, const std::vector<uin
   } else {
     lock.lock();
   }
+  // The restriction, as the sorted indices the stages take.
+  std::vector<uint32_t> among;
+  if (among_ids != nullptr) {
+    among.reserve(among_ids->size());
+    for (const int32_t id : *among_ids) {
+      const int index = impl_->db.IndexOfId(id);
+      if (index < 0) PLACEDB_THROW_INVALID("no keyframe ", id, " in the database ", impl_->dir);
+      among.push_back(static_cast<uint32_t>(index));
+    }
+    std::sort(among.begin(), among.end());
+    among.erase(std::unique(among.begin(), among.end()), among.end());
+  }
   QueryContext context;
   context.bow = impl_->bow ? &*impl_->bow : nullptr;
   context.clusters = &impl_->clusters;
-  context.among = among;
+  context.among = among_ids != nullptr ? &among : nullptr;
   // Removed keyframes (online mapping) are left out by a mask each stage
   // tests: no per-query work for them.
   if (impl_->num_removed > 0) {
@@ -323,7 +380,7 @@ QueryResult PlaceDatabase::Query(const FeatureSet& features, const QueryOptions&
   return Run(features, nullptr, options, 0.0);
 }
 
-QueryResult PlaceDatabase::QueryAmong(const cv::Mat& image, const std::vector<uint32_t>& keyframes,
+QueryResult PlaceDatabase::QueryAmong(const cv::Mat& image, const std::vector<int32_t>& keyframes,
                                       const QueryOptions& options) const {
   PLACEDB_CHECK_OPTIONS(options);
   Timer t;
@@ -332,7 +389,7 @@ QueryResult PlaceDatabase::QueryAmong(const cv::Mat& image, const std::vector<ui
 }
 
 QueryResult PlaceDatabase::QueryAmong(const FeatureSet& features,
-                                      const std::vector<uint32_t>& keyframes,
+                                      const std::vector<int32_t>& keyframes,
                                       const QueryOptions& options) const {
   return Run(features, &keyframes, options, 0.0);
 }

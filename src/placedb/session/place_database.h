@@ -9,14 +9,10 @@
 // Thread-safety contract:
 // - Every const method may run on any number of threads at once, and at the
 //   same time as the writers Add, Remove and Save on other threads.
-// - What a method returns stays valid whatever writers do afterwards: values
-//   and copies (FindKeyframe, manifest, keyframe_ids, ...), or a View, which
-//   holds the session's read lock while it lives. A writer waits for every
-//   View and query in flight before it publishes; so a thread that holds a
-//   View must not call Add, Remove or Save (it would wait for itself), and
-//   Views are meant to be short. Holding a View, a thread may call every
-//   const method (its nested reads never wait for a writer). A View is
-//   destroyed on the thread that took it.
+// - What a method returns is a value or a copy (FindKeyframe, manifest_json,
+//   keyframe_ids, ...): it stays valid whatever writers do afterwards. (The
+//   library's own readers, eval and the benchmarks, take a StorageView,
+//   session/storage_view.h, which holds the read lock while it lives.)
 // - A query sees the keyframes as they were when it started; an addition or
 //   removal becomes visible all at once. The deadline of a query
 //   (QueryOptions::deadline_ms) starts before it waits for a writer to
@@ -31,26 +27,25 @@
 //   allowed (as for any object).
 #pragma once
 
+#include <cstdint>
 #include <memory>
-#include <mutex>
-#include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <optional>
 #include <string>
 #include <vector>
 
-#include "placedb/feature/extractor.h"
-#include "placedb/build/builder.h"
-#include "placedb/retrieval/clusters.h"
-#include "placedb/storage/database.h"
-#include "placedb/retrieval/growing_bow_index.h"
+#include "placedb/build/build.h"
+#include "placedb/dataset/frame.h"
+#include "placedb/feature/options.h"
+#include "placedb/query/result.h"
+#include "placedb/retrieval/options.h"
+#include "placedb/storage/keyframe.h"
 #include "placedb/storage/keyframe_subset.h"
-#include "placedb/query/query.h"
-#include "placedb/util/fair_shared_mutex.h"
+#include "placedb/util/option_table.h"
 
 namespace placedb {
 
-class ThreadPool;
+class StorageView;
 
 struct OpenOptions {
   // Which keyframes to open: all (default), partition i of N, or an id list.
@@ -63,7 +58,15 @@ struct OpenOptions {
   // How keyframes are grouped for cluster search (made when the database
   // opens, from the keyframes' poses or their order).
   ClusterOptions clusters;
+  // Open only the keyframe table (ids, poses, crops, sources), not the
+  // keypoints and descriptors: a session that cannot query or change, but
+  // opens in a fraction of the time (a ROS voter, which only needs the
+  // poses of answers; the extractor node, which needs only the settings).
+  // Default false.
+  bool keyframe_table = false;
 
+  // The options' names, defaults, ranges and help (util/option_table.h).
+  static const OptionTable<OpenOptions>& Table();
   std::string Check() const;
 };
 
@@ -90,13 +93,24 @@ class PlaceDatabase {
   const BuildOptions& build_options() const;
   const ExtractorOptions& extractor_options() const;
   FeatureType feature_type() const;
-  // The pool queries run on (nullptr for one thread); it lives as long as
-  // the session.
-  ThreadPool* pool() const;
+  // What it was opened on: all keyframes, a partition, an id list.
+  const KeyframeSubset& subset() const;
+  // Bytes per descriptor row (ORB 32; SURF 256 or 512).
+  int descriptor_bytes() const;
 
   // Snapshots: copies taken under the read lock, valid forever.
-  // The manifest: every build setting, counts, sizes, creation info.
-  nlohmann::json manifest() const;
+  // The manifest as JSON text: every build setting, counts, sizes, creation
+  // info (`indent` -1: one line).
+  std::string manifest_json(int indent = -1) const;
+  // The name of the keyframe file the session reads, which names the
+  // database's generation: it changes with every save, so two processes
+  // that give the same name read the same keyframes (ROS workers and their
+  // voter check it).
+  std::string generation() const;
+  // Bytes of that keyframe file.
+  uint64_t keyframes_bytes() const;
+  // Descriptor rows of the keyframes answering now.
+  size_t num_features() const;
   // Keyframes answering now (removed ones left out).
   size_t size() const;
   bool empty() const { return size() == 0; }
@@ -104,39 +118,13 @@ class PlaceDatabase {
   std::optional<Keyframe> FindKeyframe(int32_t id) const;
   // The ids of the keyframes answering now, in storage order.
   std::vector<int32_t> keyframe_ids() const;
+  // Those keyframes (copies), in storage order.
+  std::vector<Keyframe> keyframes() const;
   // The features of keyframe `id` (a copy); InvalidArgument when
   // there is no such keyframe.
   FeatureSet KeyframeFeatures(int32_t id) const;
   // Path of a keyframe's stored PNG ("" when the database keeps none).
   std::string StoredImagePath(const Keyframe& keyframe) const;
-
-  // A consistent view of the session's storage, for code that needs the
-  // Database itself (benchmarks, baselines, the query stages run by hand).
-  // It holds the read lock while it lives: see the contract above. The
-  // database may include removed keyframes: removed(i) tells them.
-  class View {
-   public:
-    const Database& database() const { return *db_; }
-    // The bag-of-words index (nullptr when the database was built without
-    // one).
-    const GrowingBowIndex* bow_index() const { return bow_; }
-    // The spatial-locality clusters of the opened keyframes.
-    const ClusterSet& clusters() const { return *clusters_; }
-    // Whether keyframe index `index` was removed (online, not yet saved).
-    bool removed(size_t index) const { return (*removed_)[index] != 0; }
-    // The excluded mask QueryContext takes (nullptr when none is removed).
-    const std::vector<uint8_t>* excluded() const;
-
-   private:
-    friend class PlaceDatabase;
-    std::shared_lock<FairSharedMutex> lock_;
-    const Database* db_ = nullptr;
-    const GrowingBowIndex* bow_ = nullptr;
-    const ClusterSet* clusters_ = nullptr;
-    const std::vector<uint8_t>* removed_ = nullptr;
-    size_t num_removed_ = 0;
-  };
-  View Read() const;
 
   // The query features of an image, as Query(image) computes them: an 8-bit
   // gray, BGR or BGRA frame, full and uncropped. An empty image or another
@@ -148,12 +136,13 @@ class PlaceDatabase {
   // The same for features computed elsewhere (another node, another process).
   // They are validated against the database (InvalidArgument).
   QueryResult Query(const FeatureSet& features, const QueryOptions& options = QueryOptions()) const;
-  // Both restricted to keyframe indices `keyframes` (a partition, a cluster,
-  // bag-of-words candidates): only those are examined. Indices are those of
-  // View::database(); removed keyframes among them are left out.
-  QueryResult QueryAmong(const cv::Mat& image, const std::vector<uint32_t>& keyframes,
+  // Both restricted to the keyframes `keyframe_ids` (a partition, a
+  // cluster, the recent keyframes left out of a loop-closure search): only
+  // those are examined. An id that is not in the database is
+  // InvalidArgument; removed keyframes among them are left out.
+  QueryResult QueryAmong(const cv::Mat& image, const std::vector<int32_t>& keyframe_ids,
                          const QueryOptions& options = QueryOptions()) const;
-  QueryResult QueryAmong(const FeatureSet& features, const std::vector<uint32_t>& keyframes,
+  QueryResult QueryAmong(const FeatureSet& features, const std::vector<int32_t>& keyframe_ids,
                          const QueryOptions& options = QueryOptions()) const;
 
   // Why keyframe `keyframe_id` matched `features` (or did not): the match
@@ -188,9 +177,10 @@ class PlaceDatabase {
   void Save();
 
  private:
+  friend class StorageView;  // session/storage_view.h: the library's own readers
   struct Impl;
   explicit PlaceDatabase(std::unique_ptr<Impl> impl);
-  QueryResult Run(const FeatureSet& features, const std::vector<uint32_t>* among,
+  QueryResult Run(const FeatureSet& features, const std::vector<int32_t>* among,
                   const QueryOptions& options, double extract_ms) const;
   void AddLocked(Keyframe keyframe, const FeatureSet& features);
   void BeginChange();

@@ -13,8 +13,11 @@
 #include "placedb/dataset/image_folder.h"
 #include "placedb/dataset/match_truth.h"
 #include "placedb/retrieval/clusters.h"
+#include "placedb/build/builder.h"
+#include "placedb/query/query.h"
 #include "placedb/session/place_database.h"
 #include "placedb/util/testing.h"
+#include "placedb/session/storage_view.h"
 
 namespace placedb {
 namespace {
@@ -83,7 +86,7 @@ std::vector<FeatureSet>* SearchTest::queries_ = nullptr;
 
 TEST_F(SearchTest, BowFindsWhatExhaustiveSearchFinds) {
   const PlaceDatabase db = PlaceDatabase::Open(Dir());
-  ASSERT_NE(db.Read().bow_index(), nullptr);
+  ASSERT_NE(StorageView(db).bow_index(), nullptr);
   QueryOptions exhaustive, bow;
   bow.retrieval.method = RetrievalMethod::kBow;
   bow.retrieval.bow_candidates = 10;
@@ -108,7 +111,7 @@ TEST_F(SearchTest, BowFindsWhatExhaustiveSearchFinds) {
 // Scoring a few keyframes one by one gives the inverted file's scores.
 TEST_F(SearchTest, ScoringEachKeyframeEqualsTheInvertedFile) {
   const PlaceDatabase db = PlaceDatabase::Open(Dir());
-  const PlaceDatabase::View view = db.Read();
+  const StorageView view(db);
   const GrowingBowIndex& bow = *view.bow_index();
   const std::vector<uint32_t> among = {0, 3, 4, 5, 17, 30, 39};
   for (int id = 41; id <= 84; ++id) {
@@ -126,7 +129,7 @@ TEST_F(SearchTest, ScoringEachKeyframeEqualsTheInvertedFile) {
 
 TEST_F(SearchTest, BowNeedsAnIndex) {
   const PlaceDatabase db = PlaceDatabase::Open(PlainDir());
-  EXPECT_EQ(db.Read().bow_index(), nullptr);
+  EXPECT_EQ(StorageView(db).bow_index(), nullptr);
   QueryOptions bow;
   bow.retrieval.method = RetrievalMethod::kBow;
   EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.Query(Features(42), bow); },
@@ -138,8 +141,8 @@ TEST_F(SearchTest, SubsetsGetTheirOwnIndex) {
   OpenOptions open;
   open.subset = KeyframeSubset::Partition(1, 2, PartitionScheme::kContiguous);
   const PlaceDatabase part = PlaceDatabase::Open(Dir(), open);
-  ASSERT_NE(part.Read().bow_index(), nullptr);
-  EXPECT_EQ(part.Read().bow_index()->size(), part.size());
+  ASSERT_NE(StorageView(part).bow_index(), nullptr);
+  EXPECT_EQ(StorageView(part).bow_index()->size(), part.size());
   QueryOptions bow;
   bow.retrieval.method = RetrievalMethod::kBow;
   bow.retrieval.bow_candidates = 3;
@@ -157,7 +160,7 @@ TEST_F(SearchTest, ClusterSearchWithPriorAndFallback) {
   for (const std::string& dir : {PlainDir(), Dir()}) {
     SCOPED_TRACE(dir);
     const PlaceDatabase db = PlaceDatabase::Open(dir, open);
-    ASSERT_EQ(db.Read().clusters().size(), 8u);
+    ASSERT_EQ(StorageView(db).clusters().size(), 8u);
     QueryOptions exhaustive, cluster;
     cluster.retrieval.method = RetrievalMethod::kCluster;
     const double r_exhaustive = RecallAt1(db, exhaustive, false);
@@ -238,7 +241,7 @@ TEST_F(SearchTest, RetrievalLeavesOneCandidatesCostBeforeTheDeadline) {
   QueryOptions bow;
   bow.retrieval.method = RetrievalMethod::kBow;
   bow.deadline_ms = 1e6;  // far out of reach, however slow the machine
-  const PlaceDatabase::View view = db.Read();
+  const StorageView view(db);
   QueryContext context;
   context.bow = view.bow_index();
   CandidateCost cost;

@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "placedb/feature/types.h"
+#include "placedb/storage/keyframe.h"
 #include "placedb/storage/keyframe_subset.h"
 #include "placedb/match/ratio_matcher.h"
 #include "placedb/util/mapped_file.h"
@@ -36,25 +37,6 @@ namespace placedb {
 
 // Version of the keyframe file and manifest this code writes and reads.
 constexpr uint32_t kDatabaseFormatVersion = 2;
-
-struct Keyframe {
-  int32_t id = 0;             // the source frame's id, >= 1
-  double timestamp = -1.0;    // seconds, -1 when unknown
-  std::optional<Pose> pose;   // ground-truth / map pose, when known
-  cv::Rect crop;              // kept region, in the original image
-  int32_t crop_channel = -1;  // winning chromaticity channel, -1: whole image
-  cv::Size original_size;     // of the source image (0 x 0: unknown)
-  cv::Size stored_size;       // of the stored (cropped, resized) image
-  double scale = 1.0;         // stored = (original - crop.tl()) * scale
-  std::string source;         // path of the source image
-  std::string image_file;     // stored PNG relative to the database dir ("" if none)
-
-  // Maps a point of the stored image back to the original image.
-  cv::Point2f ToOriginal(const cv::Point2f& stored) const {
-    return {static_cast<float>(stored.x / scale + crop.x),
-            static_cast<float>(stored.y / scale + crop.y)};
-  }
-};
 
 // Why a keyframe record is impossible, or "" when it is fine: an id below 1, a
 // crop channel outside [-1, 2], a negative size or crop, an image side above

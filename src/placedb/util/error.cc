@@ -31,6 +31,18 @@ Error::Error(ErrorKind kind, std::string message, std::string where)
 }
 
 std::string FormatOptionNames(const std::string& text, OptionNames style) {
+  return FormatOptionNames(text, [style](const std::string& name) {
+    if (style == OptionNames::kKeywords) return name;
+    std::string flag = "--" + name;
+    for (char& c : flag) {
+      if (c == '_') c = '-';
+    }
+    return flag;
+  });
+}
+
+std::string FormatOptionNames(const std::string& text,
+                              const std::function<std::string(const std::string&)>& write) {
   std::string out;
   out.reserve(text.size() + 8);
   size_t i = 0;
@@ -44,14 +56,7 @@ std::string FormatOptionNames(const std::string& text, OptionNames style) {
       }
       if (end < text.size() && text[end] == '`' && end > i + 1 &&
           std::islower(static_cast<unsigned char>(text[i + 1]))) {
-        std::string name = text.substr(i + 1, end - i - 1);
-        if (style == OptionNames::kFlags) {
-          for (char& c : name) {
-            if (c == '_') c = '-';
-          }
-          out += "--";
-        }
-        out += name;
+        out += write(text.substr(i + 1, end - i - 1));
         i = end + 1;
         continue;
       }

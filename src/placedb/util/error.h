@@ -27,6 +27,7 @@
 #pragma once
 
 #include <exception>
+#include <functional>
 #include <string>
 
 namespace placedb {
@@ -95,5 +96,9 @@ enum class OptionNames {
 // `text` with every backquoted option name (`top_k`: lower-case letters,
 // digits and underscores) written in `style`; other text is left as it is.
 std::string FormatOptionNames(const std::string& text, OptionNames style);
+// The same with each name written by `write` (a client that spells some
+// flags its own way: the CLI's --no-images for store_images).
+std::string FormatOptionNames(const std::string& text,
+                              const std::function<std::string(const std::string&)>& write);
 
 }  // namespace placedb

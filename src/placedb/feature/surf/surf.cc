@@ -115,21 +115,6 @@ void Run(const cv::Mat& image, const cv::Mat& mask, const SurfOptions& options, 
 
 }  // namespace
 
-std::string SurfOptions::Check() const {
-  std::ostringstream why;
-  if (!(hessian_threshold >= 0.0 && hessian_threshold <= 1e6)) {
-    why << "hessian_threshold must be in [0, 1e6], got " << hessian_threshold;
-  } else if (num_octaves < 1 || num_octaves > kMaxOctaves) {
-    why << "num_octaves must be in [1, " << kMaxOctaves << "], got " << num_octaves;
-  } else if (num_octave_layers < 1 || num_octave_layers > kMaxOctaveLayers) {
-    why << "num_octave_layers must be in [1, " << kMaxOctaveLayers << "], got "
-        << num_octave_layers;
-  } else if (max_features < 0 || max_features > 1000000) {
-    why << "max_features must be in [0, 1000000] (0 = all), got " << max_features;
-  }
-  return why.str();
-}
-
 void DetectAndComputeSurf(const cv::Mat& image, const SurfOptions& options,
                           std::vector<cv::KeyPoint>* keypoints, cv::Mat* descriptors) {
   Run(image, cv::Mat(), options, /*use_provided=*/false, keypoints, descriptors);

@@ -29,33 +29,9 @@
 #include <string>
 #include <vector>
 
+#include "placedb/feature/surf/surf_options.h"
+
 namespace placedb {
-
-struct SurfOptions {
-  // Minimum Hessian determinant of a kept extremum, in squared grey levels
-  // (box means of a 0..255 image; same scale as OpenCV's SURF). Range
-  // [0, 1e6]. Default 100.
-  double hessian_threshold = 100.0;
-  // Number of octaves (each doubles the filter sizes and the sampling step).
-  // Default 4, range 1..8.
-  int num_octaves = 4;
-  // Layers per octave in which extrema are searched (OpenCV's nOctaveLayers);
-  // each octave computes num_octave_layers + 2 filter sizes. Default 3,
-  // range 1..8.
-  int num_octave_layers = 3;
-  // Extended 128-d descriptor (sums split by the sign of the other
-  // derivative) instead of 64-d. Default false.
-  bool extended = false;
-  // U-SURF: skip the orientation, every keypoint gets angle 0 and its
-  // descriptor is computed in the image axes. Default false.
-  bool upright = false;
-  // Keep only the this many strongest keypoints (by response); 0 keeps all.
-  // Range [0, 1000000]. Default 0.
-  int max_features = 0;
-
-  // "" when valid, else the reason.
-  std::string Check() const;
-};
 
 // Detects SURF keypoints and computes their descriptors.
 // image: CV_8UC1, or CV_8UC3 / CV_8UC4 (BGR / BGRA, converted to grey). An

@@ -1,0 +1,124 @@
+#include "placedb/cli/options.h"
+
+#include <algorithm>
+#include <map>
+#include <mutex>
+
+#include "placedb/util/error.h"
+
+namespace placedb {
+namespace cli {
+namespace {
+// Option name -> the flag bound for it in this program.
+std::mutex& FlagsMutex() {
+  static std::mutex m;
+  return m;
+}
+std::map<std::string, std::string>& BoundFlags() {
+  static std::map<std::string, std::string> flags;
+  return flags;
+}
+
+}  // namespace
+
+std::string FlagOf(const std::string& name) {
+  {
+    std::lock_guard<std::mutex> lock(FlagsMutex());
+    const auto it = BoundFlags().find(name);
+    if (it != BoundFlags().end()) return it->second;
+  }
+  std::string flag = "--" + name;
+  std::replace(flag.begin(), flag.end(), '_', '-');
+  return flag;
+}
+
+std::string FlagName(const OptionField& field) {
+  const size_t comma = field.flag.find(',');
+  return comma == std::string::npos ? field.flag : field.flag.substr(0, comma);
+}
+
+namespace {
+
+const char* TypeName(OptionKind kind) {
+  switch (kind) {
+    case OptionKind::kBool:
+      return "BOOL";
+    case OptionKind::kInt:
+    case OptionKind::kUint64:
+      return "INT";
+    case OptionKind::kDouble:
+      return "FLOAT";
+    case OptionKind::kText:
+      return "TEXT";
+    case OptionKind::kChoice:
+      return "NAME";
+    case OptionKind::kList:
+      return "LIST";
+    case OptionKind::kNumbers:
+      return "NUMBERS";
+  }
+  return "TEXT";
+}
+
+// "help [range]", option names written as flags.
+std::string HelpOf(const OptionField& f) {
+  std::string help = f.help;
+  if (f.kind != OptionKind::kBool && f.kind != OptionKind::kText && !f.range.empty() &&
+      f.range != "any") {
+    help += f.kind == OptionKind::kChoice || f.kind == OptionKind::kList ? ": " + f.range
+            : f.range.find_first_of("[(") == 0                           ? " " + f.range
+                                                                          : " (" + f.range + ")";
+  }
+  return FormatOptionNames(help, FlagOf);
+}
+
+}  // namespace
+
+void AddOptionFlags(CLI::App* cmd, const OptionTableBase& table, void* options,
+                    const std::vector<std::string>& skip) {
+  for (const OptionTableBase::Entry& entry : table.entries()) {
+    const OptionField& f = entry.field;
+    if ((f.surfaces & kCommandLine) == 0) continue;
+    if (std::find(skip.begin(), skip.end(), f.name) != skip.end()) continue;
+    {
+      std::lock_guard<std::mutex> lock(FlagsMutex());
+      BoundFlags()[f.name] = FlagName(f);
+    }
+    const std::string help = HelpOf(f);
+    const OptionTableBase::Entry* e = &entry;  // tables live as long as the program
+    if (f.kind == OptionKind::kBool && f.bool_flag != BoolFlag::kValue) {
+      CLI::Option* flag = nullptr;
+      switch (f.bool_flag) {
+        case BoolFlag::kSwitch:
+          flag = cmd->add_flag_function(
+              f.flag, [e, options](int64_t) { e->set(options, true); }, help);
+          break;
+        case BoolFlag::kNegatable:
+          // CLI11 counts --name as 1 and --no-name as -1.
+          flag = cmd->add_flag_function(
+              f.flag, [e, options](int64_t count) { e->set(options, count > 0); }, help);
+          flag->default_str(OptionTableBase::Text(entry.get(options)));
+          break;
+        case BoolFlag::kInverted:
+          flag = cmd->add_flag_function(
+              f.flag, [e, options](int64_t) { e->set(options, false); }, help);
+          break;
+        case BoolFlag::kValue:
+          break;
+      }
+      continue;
+    }
+    const std::string name = f.name;
+    CLI::Option* option = cmd->add_option_function<std::string>(
+        f.flag, [&table, options, name](const std::string& text) {
+          table.SetText(options, name, text);
+        },
+        help);
+    option->type_name(TypeName(f.kind));
+    const std::string current = OptionTableBase::Text(entry.get(options));
+    if (!current.empty()) option->default_str(current);
+  }
+}
+
+}  // namespace cli
+}  // namespace placedb

@@ -1,0 +1,49 @@
+// The option tables of the feature stage: ORB and what every extractor
+// shares (util/option_table.h; SURF's is in surf/surf_options.cc).
+#include "placedb/feature/options.h"
+#include "placedb/util/option_table.h"
+
+namespace placedb {
+
+const OptionTable<OrbOptions>& OrbOptions::Table() {
+  static const OptionTable<OrbOptions> table = [] {
+    using O = OrbOptions;
+    OptionTable<O> t("ORB options");
+    t.Number("orb_max_features", PLACEDB_MEMBER(O, max_features), OptionRange::Closed(1, 100000),
+             "ORB: most keypoints per image");
+    t.Number("orb_scale_factor", PLACEDB_MEMBER(O, scale_factor), OptionRange::LeftOpen(1, 4),
+             "ORB: pyramid scale factor");
+    t.Number("orb_levels", PLACEDB_MEMBER(O, num_levels), OptionRange::Closed(1, 32),
+             "ORB: pyramid levels");
+    t.Number("orb_edge_threshold", PLACEDB_MEMBER(O, edge_threshold), OptionRange::Closed(0, 512),
+             "ORB: border without features, px");
+    t.Number("orb_fast_threshold", PLACEDB_MEMBER(O, fast_threshold), OptionRange::Closed(1, 255),
+             "ORB: FAST threshold");
+    t.Number("orb_patch_size", PLACEDB_MEMBER(O, patch_size), OptionRange::Closed(2, 512),
+             "ORB: BRIEF patch size, px");
+    return t;
+  }();
+  return table;
+}
+
+std::string OrbOptions::Check() const { return Table().Check(*this); }
+
+const OptionTable<ExtractorOptions>& ExtractorOptions::Table() {
+  static const OptionTable<ExtractorOptions> table = [] {
+    using O = ExtractorOptions;
+    OptionTable<O> t("feature options");
+    t.Choice("features", PLACEDB_MEMBER(O, type), {FeatureType::kOrb, FeatureType::kSurf},
+             ParseFeatureType, FeatureTypeName, "feature type");
+    t.Nest(PLACEDB_MEMBER(O, orb), OrbOptions::Table());
+    t.Nest(PLACEDB_MEMBER(O, surf), SurfOptions::Table());
+    t.Number("upscale_below", PLACEDB_MEMBER(O, upscale_below), OptionRange::Closed(0, 4096),
+             "small frames: upscale images whose shorter side is below this for extraction "
+             "(0: never)");
+    return t;
+  }();
+  return table;
+}
+
+std::string ExtractorOptions::Check() const { return Table().Check(*this); }
+
+}  // namespace placedb

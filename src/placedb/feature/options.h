@@ -1,0 +1,53 @@
+// The options of feature extraction: ORB's, our SURF's, and what every
+// extractor shares (part of the public face, placedb/placedb.h).
+#pragma once
+
+#include <string>
+
+#include "placedb/feature/surf/surf_options.h"
+#include "placedb/feature/types.h"
+#include "placedb/util/option_table.h"
+
+namespace placedb {
+
+// OpenCV ORB's settings (defaults equal to cv::ORB::create()'s).
+struct OrbOptions {
+  // Most keypoints kept per image (strongest by Harris score). Range
+  // [1, 100000]. Default 500.
+  int max_features = 500;
+  // Pyramid decimation ratio between levels. Range (1, 4]. Default 1.2.
+  double scale_factor = 1.2;
+  // Number of pyramid levels. Range [1, 32]. Default 8.
+  int num_levels = 8;
+  // Border without features, pixels (should match patch_size). Range
+  // [0, 512]. Default 31.
+  int edge_threshold = 31;
+  // FAST threshold used by ORB's detector. Range [1, 255]. Default 20.
+  int fast_threshold = 20;
+  // Size of the BRIEF patch, pixels. Range [2, 512]. Default 31.
+  int patch_size = 31;
+
+  // The options' names, defaults, ranges and help (util/option_table.h).
+  static const OptionTable<OrbOptions>& Table();
+  std::string Check() const;
+};
+
+struct ExtractorOptions {
+  // Which descriptor to compute. Default ORB.
+  FeatureType type = FeatureType::kOrb;
+  OrbOptions orb;
+  SurfOptions surf;
+  // Small frames: an image whose shorter side is below this many pixels is
+  // upscaled (bilinear) until it is this long (at most 4x) for extraction,
+  // and the keypoints are mapped back to the image (position, size). ORB's 31-px
+  // patch and border leave little of a 160x120 frame. 0 disables. Range
+  // [0, 4096]. Default 240 (measured on data/rtabmap_loop shrunk to 160x120:
+  // recall@1 0.909 without, 0.977 with; 320x240 frames are not upscaled).
+  int upscale_below = 240;
+
+  // The options' names, defaults, ranges and help (util/option_table.h).
+  static const OptionTable<ExtractorOptions>& Table();
+  std::string Check() const;
+};
+
+}  // namespace placedb

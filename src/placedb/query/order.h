@@ -1,0 +1,41 @@
+// The order and the decision of a query's answer, shared by the stages
+// (query.cc) and the voting merge (merge.cc), so that a merged answer ranks
+// and decides exactly as the whole database's.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+
+#include "placedb/query/result.h"
+
+namespace placedb {
+namespace query_order {
+
+// Match-stage order: more matches first, then the lower id.
+inline bool MoreMatches(int32_t id_a, int a, int32_t id_b, int b) { return a != b ? a > b : id_a < id_b; }
+
+// Final order: verified ones by inliers, then matches, then id; unverified by
+// matches, then id.
+inline bool RanksFirst(const RankedKeyframe& a, const RankedKeyframe& b) {
+  if (a.score != b.score) return a.score > b.score;
+  return MoreMatches(a.keyframe_id, a.num_matches, b.keyframe_id, b.num_matches);
+}
+
+inline void Decide(QueryResult* r, const QueryOptions& options) {
+  r->matched = !r->ranked.empty() && r->ranked.front().score >= options.min_score;
+}
+
+inline double CoverageOf(const QueryResult& r) {
+  return r.num_keyframes == 0
+             ? 0.0
+             : static_cast<double>(r.num_examined) / static_cast<double>(r.num_keyframes);
+}
+
+// How many of the match stage's best keyframes go on.
+inline size_t KeptAfterMatching(const QueryOptions& options) {
+  return static_cast<size_t>(options.verify.enabled ? options.verify.num_candidates
+                                                    : options.top_k);
+}
+
+}  // namespace query_order
+}  // namespace placedb

@@ -1,0 +1,145 @@
+// A query's answer: equality and its JSON.
+#include <nlohmann/json.hpp>
+
+#include "placedb/query/query.h"
+#include "placedb/util/check.h"
+#include "placedb/util/json_reader.h"
+
+namespace placedb {
+
+bool RankedKeyframe::operator==(const RankedKeyframe& o) const {
+  const bool same_pose = pose.has_value() == o.pose.has_value() &&
+                         (!pose || (pose->translation == o.pose->translation &&
+                                    pose->rotation.coeffs() == o.pose->rotation.coeffs()));
+  return keyframe_id == o.keyframe_id && score == o.score && num_matches == o.num_matches &&
+         num_inliers == o.num_inliers && same_pose && timestamp == o.timestamp &&
+         source == o.source && stored_image == o.stored_image;
+}
+
+// ---- JSON -------------------------------------------------------------------
+namespace {
+
+nlohmann::json PoseToJson(const std::optional<Pose>& pose) {
+  if (!pose) return nullptr;
+  const auto& t = pose->translation;
+  const auto& q = pose->rotation;
+  return {{"translation", {t.x(), t.y(), t.z()}},
+          {"quaternion_xyzw", {q.x(), q.y(), q.z(), q.w()}}};
+}
+
+std::optional<Pose> PoseFromJson(const JsonReader& parent, const char* key) {
+  if (parent.Member(key).is_null()) return std::nullopt;
+  const JsonReader j = parent.Child(key);
+  auto vec = [&](const char* name, size_t n) {
+    const nlohmann::json& a = j.Member(name);
+    if (!a.is_array() || a.size() != n)
+      j.Fail(name, "is not an array of " + std::to_string(n) + " numbers");
+    std::vector<double> v;
+    for (const auto& x : a) {
+      if (!x.is_number() || !std::isfinite(x.get<double>()))
+        j.Fail(name, "holds a value that is not a finite number");
+      v.push_back(x.get<double>());
+    }
+    return v;
+  };
+  const std::vector<double> t = vec("translation", 3);
+  const std::vector<double> q = vec("quaternion_xyzw", 4);
+  Pose pose;
+  pose.translation = Eigen::Vector3d(t[0], t[1], t[2]);
+  pose.rotation = Eigen::Quaterniond(q[3], q[0], q[1], q[2]);
+  if (std::abs(pose.rotation.norm() - 1.0) > 1e-3)
+    j.Fail("quaternion_xyzw", "is not a unit quaternion");
+  return pose;
+}
+
+RankedKeyframe RankedFromJson(const JsonReader& j) {
+  RankedKeyframe r;
+  r.keyframe_id = static_cast<int32_t>(j.Integer("keyframe_id", INT32_MIN, INT32_MAX));
+  r.score = j.Number("score");
+  r.num_matches = static_cast<int>(j.Integer("num_matches", 0, INT32_MAX));
+  r.num_inliers = static_cast<int>(j.Integer("num_inliers", -1, INT32_MAX));
+  r.pose = PoseFromJson(j, "pose");
+  r.timestamp = j.Number("timestamp");
+  r.source = j.String("source");
+  r.stored_image = j.String("stored_image");
+  if (r.num_inliers > r.num_matches) j.Fail("num_inliers", "exceeds num_matches");
+  return r;
+}
+
+}  // namespace
+
+void to_json(nlohmann::json& j, const RankedKeyframe& r) {
+  j = {
+      {"keyframe_id", r.keyframe_id}, {"score", r.score},         {"num_matches", r.num_matches},
+      {"num_inliers", r.num_inliers}, {"verified", r.verified()}, {"pose", PoseToJson(r.pose)},
+      {"timestamp", r.timestamp},     {"source", r.source},       {"stored_image", r.stored_image}};
+}
+
+void from_json(const nlohmann::json& j, RankedKeyframe& r) {
+  r = RankedFromJson(JsonReader(j, "ranked keyframe"));
+}
+
+void to_json(nlohmann::json& j, const QueryResult& r) {
+  j = nlohmann::json::object();
+  j["matched"] = r.matched;
+  j["best"] = r.best() ? nlohmann::json(*r.best()) : nlohmann::json(nullptr);
+  j["ranked"] = r.ranked;
+  j["num_query_features"] = r.num_query_features;
+  j["num_keyframes"] = r.num_keyframes;
+  j["num_examined"] = r.num_examined;
+  j["num_verified"] = r.num_verified;
+  j["coverage"] = r.coverage;
+  j["deadline_reached"] = r.deadline_reached;
+  j["search"] = r.search;
+  j["cluster"] = r.cluster;
+  j["times_ms"] = {{"extract", r.times.extract_ms},
+                   {"retrieve", r.times.retrieve_ms},
+                   {"match", r.times.match_ms},
+                   {"verify", r.times.verify_ms},
+                   {"total", r.times.total_ms}};
+}
+
+void from_json(const nlohmann::json& json, QueryResult& out) {
+  const JsonReader j(json, "query result");
+  QueryResult r;
+  r.matched = j.Boolean("matched");
+  const nlohmann::json& ranked = j.Member("ranked");
+  if (!ranked.is_array()) j.Fail("ranked", "is not an array");
+  for (size_t i = 0; i < ranked.size(); ++i) {
+    r.ranked.push_back(
+        RankedFromJson(JsonReader(ranked[i], j.where() + ".ranked[" + std::to_string(i) + "]")));
+  }
+  if (r.matched && r.ranked.empty()) j.Fail("matched", "is true but nothing is ranked");
+  r.num_query_features = static_cast<int>(j.Integer("num_query_features", 0, INT32_MAX));
+  r.num_keyframes = static_cast<size_t>(j.Integer("num_keyframes", 0, INT64_MAX));
+  r.num_examined = static_cast<size_t>(j.Integer("num_examined", 0, INT64_MAX));
+  r.num_verified = static_cast<size_t>(j.Integer("num_verified", 0, INT64_MAX));
+  r.coverage = j.Number("coverage");
+  if (r.coverage < 0.0 || r.coverage > 1.0) j.Fail("coverage", "is not in [0, 1]");
+  r.deadline_reached = j.Boolean("deadline_reached");
+  r.search = j.String("search");
+  r.cluster = static_cast<int>(j.Integer("cluster", -1, INT32_MAX));
+  const JsonReader t = j.Child("times_ms");
+  r.times.extract_ms = t.Number("extract");
+  r.times.retrieve_ms = t.Number("retrieve");
+  r.times.match_ms = t.Number("match");
+  r.times.verify_ms = t.Number("verify");
+  r.times.total_ms = t.Number("total");
+  out = std::move(r);
+}
+
+std::string QueryResultToJson(const QueryResult& result, int indent) {
+  return DumpJson(nlohmann::json(result), indent);
+}
+
+QueryResult QueryResultFromJson(const std::string& json) {
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(json);
+  } catch (const nlohmann::json::exception& e) {
+    PLACEDB_THROW_INVALID("a query result that is not JSON: ", e.what());
+  }
+  return j.get<QueryResult>();
+}
+
+}  // namespace placedb

@@ -1,0 +1,154 @@
+// A query's options and its answer: the ranked keyframes, the decision
+// ("no match / new place" or the best keyframe and its pose), the stage
+// times and counts; the voting merge of partial answers; the answer's JSON
+// (part of the public face, placedb/placedb.h; the stages that compute it
+// are query/query.h).
+#pragma once
+
+#include <cstdint>
+#include <opencv2/core/types.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "placedb/match/options.h"
+#include "placedb/retrieval/options.h"
+#include "placedb/util/option_table.h"
+#include "placedb/util/pose.h"
+
+namespace placedb {
+
+// Where the robot probably is, for cluster search: the last answer's
+// keyframe, or a pose in the map frame (the keyframe wins when both are set).
+struct QueryPrior {
+  // Id of a keyframe near the query (the previous frame's answer); 0: none.
+  // Range [0, 2^31). An id not in the database is no prior.
+  int32_t keyframe_id = 0;
+  std::optional<Pose> pose;
+
+  bool empty() const { return keyframe_id == 0 && !pose; }
+  // The options' names, defaults, ranges and help (util/option_table.h).
+  static const OptionTable<QueryPrior>& Table();
+  std::string Check() const;
+};
+
+struct QueryOptions {
+  // Length of the ranked list returned. Range [1, 10000]. Default 5.
+  int top_k = 5;
+  // Keyframes with fewer matches than this are not ranked. Range [1, 100000].
+  // Default 1.
+  int min_matches = 1;
+  // Retrieve stage: which keyframes are examined.
+  RetrievalOptions retrieval;
+  // Match stage: ratio test, one-to-one, sparse-keyframe guard.
+  MatchOptions match;
+  // Verify stage: USAC on the best candidates; the inliers become the score.
+  VerifyOptions verify;
+  // Decide stage: the best keyframe is the answer when its score (inliers when
+  // verified, else matches) is at least this; else "no match / new place".
+  // Range [0, 100000]. Default 12.
+  double min_score = 12.0;
+  // Time budget of retrieve + match + verify, in milliseconds; 0 = none.
+  // Candidates are examined best prior first until it runs out (at least
+  // one is examined and verified), so a query is late by at most one
+  // candidate's work; the result's coverage says how much was searched.
+  // Range [0, 1e7]. Default 0.
+  double deadline_ms = 0.0;
+  // For cluster search: where the robot probably is. Default none.
+  QueryPrior prior;
+
+  // The options' names, defaults, ranges and help (util/option_table.h).
+  static const OptionTable<QueryOptions>& Table();
+  std::string Check() const;
+  // The options a partition (thread, process, worker node) runs with so that
+  // MergeQueryResults can rebuild the whole database's answer exactly: the
+  // ranked list keeps every verified candidate, not just the top k.
+  QueryOptions ForPartition() const;
+};
+
+// One keyframe of an answer.
+struct RankedKeyframe {
+  int32_t keyframe_id = 0;
+  // What the ranking uses: num_inliers when verified, else num_matches.
+  double score = 0.0;
+  int num_matches = 0;   // matches that passed the match stage
+  int num_inliers = -1;  // geometric inliers; -1 when not verified
+  bool verified() const { return num_inliers >= 0; }
+  std::optional<Pose> pose;  // the keyframe's pose (its map coordinates), when known
+  double timestamp = -1.0;   // of the keyframe's source frame, -1 when unknown
+  std::string source;        // the keyframe's source image
+  std::string stored_image;  // its stored PNG (database dir joined), "" when none
+
+  bool operator==(const RankedKeyframe& o) const;
+};
+
+// Milliseconds spent in each stage of one query.
+struct StageTimes {
+  double extract_ms = 0.0;  // query feature extraction (0 when features were given)
+  double retrieve_ms = 0.0;
+  double match_ms = 0.0;
+  double verify_ms = 0.0;
+  double total_ms = 0.0;
+};
+
+struct QueryResult {
+  // Best first, at most top_k: with verification, the verified candidates by
+  // inliers (then matches, then lower id); without, by matches (then id).
+  std::vector<RankedKeyframe> ranked;
+  // The decision: ranked[0] is the answer when true; false means "no match /
+  // new place" (nothing ranked, or the best score is below min_score).
+  bool matched = false;
+  int num_query_features = 0;
+  size_t num_keyframes = 0;  // in the database (partition, restriction) searched
+  size_t num_examined = 0;   // keyframes the match stage compared
+  size_t num_verified = 0;   // keyframes the verify stage ran on
+  // num_examined / num_keyframes (0 for an empty database).
+  double coverage = 0.0;
+  // The deadline stopped the match or verify stage early.
+  bool deadline_reached = false;
+  // How the candidates were found: "exhaustive", "bow", "cluster" (the
+  // prior's clusters were enough), "cluster+fallback" (the local answer was
+  // weak and the rest of the database was searched too), "cluster+global"
+  // (no usable prior: a global search).
+  std::string search = "exhaustive";
+  // cluster search: the prior's cluster, -1 when none.
+  int cluster = -1;
+  StageTimes times;
+
+  // The answer, or nullptr for "no match".
+  const RankedKeyframe* best() const { return matched ? &ranked.front() : nullptr; }
+};
+
+// Why a keyframe matched: the match and verify stages of a query on one
+// keyframe, with every match kept (for pictures and diagnostics).
+struct MatchDetail {
+  int32_t keyframe_id = 0;
+  // The query's keypoints, in the order the matches' queryIdx refers to
+  // (SURF: grouped by Laplacian sign, as the match stage sees them).
+  std::vector<cv::KeyPoint> query_keypoints;
+  // The keyframe's keypoints (trainIdx), in its original image and in its
+  // stored (cropped, resized) image.
+  std::vector<cv::Point2f> keyframe_points;
+  std::vector<cv::Point2f> keyframe_stored_points;
+  std::vector<cv::DMatch> matches;  // what passed the match stage
+  bool verified = false;            // the verify stage ran
+  int num_inliers = 0;
+  std::vector<uint8_t> inliers;  // one per match when verified (1: inlier)
+};
+
+// The voting step. `parts` are results of disjoint partitions of one database,
+// each computed with options.ForPartition(); the merge ranks and decides as
+// QueryDatabase on the whole database would (the same ranked list and
+// decision). Counts add up; stage times are the slowest part's (the parts
+// run in parallel). Throws InvalidArgument when a keyframe appears in
+// two parts or verified and unverified entries are mixed.
+QueryResult MergeQueryResults(const std::vector<QueryResult>& parts, const QueryOptions& options);
+
+// The answer as the library's JSON text (`indent` -1: one line), and back:
+// QueryResultFromJson validates every field (InvalidArgument naming it), for
+// answers received over the wire. The CLI's --json, eval's records and the
+// ROS voter's answers are this JSON.
+std::string QueryResultToJson(const QueryResult& result, int indent = -1);
+QueryResult QueryResultFromJson(const std::string& json);
+
+}  // namespace placedb
