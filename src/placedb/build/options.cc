@@ -23,7 +23,8 @@ const OptionTable<BuildOptions>& BuildOptions::Table() {
            "crop: extract features on the whole frame and keep those inside the crop (false: on "
            "the stored crop alone)");
     t.Bool("store_images", PLACEDB_MEMBER(O, store_images),
-           "keep the stored images (PNG) in the database", BoolFlag::kInverted)
+           "keep the stored images (PNG) in the database (the command line's --no-images: do not)",
+           BoolFlag::kInverted)
         .flag = "--no-images";
     t.Number("png_compression", PLACEDB_MEMBER(O, png_compression), OptionRange::Closed(0, 9),
              "PNG level of the stored images");

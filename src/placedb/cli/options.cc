@@ -18,8 +18,17 @@ std::map<std::string, std::string>& BoundFlags() {
   static std::map<std::string, std::string> flags;
   return flags;
 }
+std::vector<BoundTable>& Bound() {
+  static std::vector<BoundTable> bound;
+  return bound;
+}
 
 }  // namespace
+
+std::vector<BoundTable> BoundTables() {
+  std::lock_guard<std::mutex> lock(FlagsMutex());
+  return Bound();
+}
 
 std::string FlagOf(const std::string& name) {
   {
@@ -76,6 +85,10 @@ std::string HelpOf(const OptionField& f) {
 
 void AddOptionFlags(CLI::App* cmd, const OptionTableBase& table, void* options,
                     const std::vector<std::string>& skip) {
+  {
+    std::lock_guard<std::mutex> lock(FlagsMutex());
+    Bound().push_back({cmd->get_name(), &table, skip});
+  }
   for (const OptionTableBase::Entry& entry : table.entries()) {
     const OptionField& f = entry.field;
     if ((f.surfaces & kCommandLine) == 0) continue;

@@ -23,6 +23,15 @@ void AddOptionFlags(CLI::App* cmd, T* options, const std::vector<std::string>& s
   AddOptionFlags(cmd, T::Table(), options, skip);
 }
 
+// What AddOptionFlags bound: which command took which table's options (but
+// `skip`), in the order they were bound. `placedb options` prints them.
+struct BoundTable {
+  std::string command;  // the sub-command's name ("query")
+  const OptionTableBase* table;
+  std::vector<std::string> skip;
+};
+std::vector<BoundTable> BoundTables();
+
 // The flag an option name is written as in messages: the flag a table
 // bound in this program spells for it ("--no-images" for store_images), or
 // the name with dashes.

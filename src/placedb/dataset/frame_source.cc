@@ -36,9 +36,9 @@ const OptionTable<FrameSourceOptions>& FrameSourceOptions::Table() {
              "a folder of images (sorted by name) or a text file listing image paths", kCallers);
     t.String("tum", PLACEDB_MEMBER(O, tum), "a TUM RGB-D folder (rgb.txt, groundtruth.txt)",
              kCallers);
-    t.Number("first", PLACEDB_MEMBER(O, first), OptionRange::Closed(1, 2147483647.0),
+    t.Number("first", PLACEDB_MEMBER(O, first), OptionRange::RightOpen(1, 2147483648.0),
              "first frame id to use (1-based position in the listing)", kCallers);
-    t.Number("last", PLACEDB_MEMBER(O, last), OptionRange::Closed(0, 2147483647.0),
+    t.Number("last", PLACEDB_MEMBER(O, last), OptionRange::RightOpen(0, 2147483648.0),
              "last frame id to use (0: to the end)", kCallers);
     OptionField size;
     size.name = "frame_size";

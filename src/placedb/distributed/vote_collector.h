@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "placedb/query/query.h"
+#include "placedb/query/result.h"
 #include "placedb/util/option_table.h"
 
 namespace placedb {

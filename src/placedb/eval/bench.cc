@@ -1,4 +1,5 @@
 #include "placedb/eval/bench.h"
+#include "placedb/eval/report_json.h"
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -12,6 +13,7 @@
 #include "placedb/match/hamming.h"
 #include "placedb/match/l2_distance.h"
 #include "placedb/util/check.h"
+#include "placedb/util/json_reader.h"
 #include "placedb/util/options.h"
 #include "placedb/util/thread_pool.h"
 #include "placedb/util/timer.h"
@@ -115,6 +117,10 @@ BenchReport RunBench(const PlaceDatabase& db, const std::vector<Frame>& frames,
   r.repeat = options.repeat;
   r.extract_ms = extract_ms / n;
   return r;
+}
+
+std::string BenchReportJson(const BenchReport& report, int indent) {
+  return DumpJson(BenchReportToJson(report), indent);
 }
 
 nlohmann::json BenchReportToJson(const BenchReport& r) {

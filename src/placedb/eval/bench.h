@@ -9,7 +9,6 @@
 #pragma once
 
 #include <cstdint>
-#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -59,7 +58,8 @@ struct BenchReport {
 BenchReport RunBench(const PlaceDatabase& db, const std::vector<Frame>& frames,
                      const BenchOptions& options, const QueryOptions& query_options);
 
-nlohmann::json BenchReportToJson(const BenchReport& report);
+// The report as JSON text (`indent` -1: one line).
+std::string BenchReportJson(const BenchReport& report, int indent = -1);
 std::string FormatBenchReport(const BenchReport& report);
 
 }  // namespace placedb

@@ -1,6 +1,7 @@
 // `placedb bench` on small databases of the shipped sample data: the report
 // is complete and both methods rank alike.
 #include "placedb/eval/bench.h"
+#include "placedb/eval/report_json.h"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,5 @@
 #include "placedb/eval/evaluate.h"
+#include "placedb/eval/report_json.h"
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -11,6 +12,7 @@
 
 #include "placedb/query/query.h"
 #include "placedb/util/check.h"
+#include "placedb/util/json_reader.h"
 #include "placedb/util/file_io.h"
 #include "placedb/util/options.h"
 #include "placedb/util/progress.h"
@@ -84,7 +86,7 @@ EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_fra
     QueryRecord rec;
     rec.query_id = q.id;
     rec.image = q.image_path;
-    rec.has_true_match_in_db = truth.AnyCorrectIn(q, StorageView(db).database());
+    rec.has_true_match_in_db = truth.AnyCorrectIn(q, StorageView(db).database().keyframes());
     const cv::Mat image = LoadFrameImage(q);
     if (image.empty()) {
       spdlog::warn("skipped unreadable query image {} (frame {})", q.image_path, q.id);
@@ -168,6 +170,10 @@ nlohmann::json PointJson(const PrPoint& p) {
           {"answered", p.answered}};
 }
 }  // namespace
+
+std::string EvalReportJson(const EvalReport& report, int indent) {
+  return DumpJson(EvalReportToJson(report), indent);
+}
 
 nlohmann::json EvalReportToJson(const EvalReport& r) {
   nlohmann::json j;

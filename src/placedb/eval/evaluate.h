@@ -6,7 +6,6 @@
 
 #include <cstdint>
 #include <map>
-#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -103,7 +102,7 @@ EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_fra
 // at_threshold, curve}, latency_ms {mean, p50, p99, max} and per stage,
 // database_bytes {images, features}, reduction_vs_full, and per-query records
 // with each query's full QueryResult.
-nlohmann::json EvalReportToJson(const EvalReport& report);
+std::string EvalReportJson(const EvalReport& report, int indent = -1);
 
 // A human-readable table of the report.
 std::string FormatEvalReport(const EvalReport& report);

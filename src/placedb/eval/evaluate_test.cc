@@ -1,6 +1,7 @@
 // End-to-end: the paper's experiment on the shipped sample data, through the
 // session API (PlaceDatabase) as every client runs it.
 #include "placedb/eval/evaluate.h"
+#include "placedb/eval/report_json.h"
 
 #include <gtest/gtest.h>
 

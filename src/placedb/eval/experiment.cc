@@ -1,4 +1,7 @@
 #include "placedb/eval/experiment.h"
+#include "placedb/eval/report_json.h"
+#include "placedb/build/builder.h"
+#include "placedb/query/query.h"
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -20,6 +23,7 @@
 #include "placedb/util/checksum.h"
 #include "placedb/util/file_io.h"
 #include "placedb/util/json_reader.h"
+#include "placedb/util/option_json.h"
 #include "placedb/util/options.h"
 #include "placedb/session/storage_view.h"
 
@@ -62,34 +66,6 @@ std::vector<ExperimentSetting> ExperimentOptions::Grid() const {
     }
   }
   return grid;
-}
-
-nlohmann::json QueryOptionsToJson(const QueryOptions& o) {
-  return {{"top_k", o.top_k},
-          {"min_matches", o.min_matches},
-          {"min_score", o.min_score},
-          {"deadline_ms", o.deadline_ms},
-          {"retrieval",
-           {{"method", RetrievalMethodName(o.retrieval.method)},
-            {"bow_candidates", o.retrieval.bow_candidates},
-            {"guided_candidates", o.retrieval.guided_candidates},
-            {"cluster_hops", o.retrieval.cluster_hops},
-            {"cluster_fallback_score", o.retrieval.cluster_fallback_score}}},
-          {"match",
-           {{"ratio", o.match.ratio},
-            {"max_hamming", o.match.max_hamming},
-            {"max_l2", o.match.max_l2},
-            {"use_laplacian_sign", o.match.use_laplacian_sign},
-            {"one_to_one", o.match.one_to_one},
-            {"cross_check", o.match.cross_check}}},
-          {"verify",
-           {{"enabled", o.verify.enabled},
-            {"model", GeometricModelName(o.verify.model)},
-            {"num_candidates", o.verify.num_candidates},
-            {"max_error_px", o.verify.max_error_px},
-            {"confidence", o.verify.confidence},
-            {"max_iterations", o.verify.max_iterations},
-            {"seed", o.verify.seed}}}};
 }
 
 namespace {
@@ -510,7 +486,7 @@ ExperimentSummary RunExperiment(const ExperimentData& data, const GroundTruth& t
   eval.progress = options.progress;
   nlohmann::json build = BuildSettingsToJson(options.build);
   for (const char* per_setting : {"features", "crop", "resize"}) build.erase(per_setting);
-  nlohmann::json query = QueryOptionsToJson(options.query);
+  nlohmann::json query = OptionsToJson(options.query, kCallers);
   query["verify"].erase("enabled");
   const nlohmann::json config = {
       {"format", "placedb experiment 1"},

@@ -16,15 +16,14 @@
 // skips what is finished and redoes nothing else.
 #pragma once
 
-#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
 #include "placedb/dataset/frame.h"
 #include "placedb/eval/evaluate.h"
 #include "placedb/eval/ground_truth.h"
-#include "placedb/build/builder.h"
-#include "placedb/query/query.h"
+#include "placedb/build/build.h"
+#include "placedb/query/result.h"
 #include "placedb/util/option_table.h"
 
 namespace placedb {
@@ -117,8 +116,5 @@ ExperimentSummary RunExperiment(const ExperimentData& data, const GroundTruth& t
 // $PLACEDB_REPORT_SCRIPT, then the installed share/placedb/, then the source tree this was built
 // from.
 std::string WriteExperimentReport(const std::string& out_dir);
-
-// The query options as JSON (what results.json records).
-nlohmann::json QueryOptionsToJson(const QueryOptions& options);
 
 }  // namespace placedb

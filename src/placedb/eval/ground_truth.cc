@@ -39,8 +39,8 @@ bool GroundTruth::IsCorrect(const Frame& query, const Keyframe& keyframe) const 
          RotationAngleDeg(*query.pose, *keyframe.pose) <= thresholds_.max_angle_deg;
 }
 
-bool GroundTruth::AnyCorrectIn(const Frame& query, const Database& db) const {
-  for (const Keyframe& k : db.keyframes()) {
+bool GroundTruth::AnyCorrectIn(const Frame& query, const std::vector<Keyframe>& keyframes) const {
+  for (const Keyframe& k : keyframes) {
     if (IsCorrect(query, k)) return true;
   }
   return false;
@@ -63,6 +63,16 @@ std::vector<int> GroundTruth::IdsAbove(int max_id) const {
 std::string GroundTruth::Describe() const {
   if (list_) return "match list";
   return fmt::format("poses ({} m, {} deg)", thresholds_.max_distance_m, thresholds_.max_angle_deg);
+}
+
+GroundTruth MakeGroundTruth(const GroundTruthOptions& options, const FrameSourceOptions& queries) {
+  PLACEDB_CHECK_OPTIONS(options);
+  if (!options.truth.empty()) return GroundTruth::FromMatchList(ReadMatchTruth(options.truth));
+  if (!queries.images.empty()) {
+    PLACEDB_THROW_INVALID("query frames from `images` need a `truth` CSV of true matches (or use "
+                          "`tum`, whose frames have poses)");
+  }
+  return GroundTruth::FromPoses(options.poses);
 }
 
 }  // namespace placedb

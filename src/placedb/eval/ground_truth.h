@@ -7,8 +7,9 @@
 #include <vector>
 
 #include "placedb/dataset/frame.h"
+#include "placedb/dataset/frame_source.h"
 #include "placedb/dataset/match_truth.h"
-#include "placedb/storage/database.h"
+#include "placedb/storage/keyframe.h"
 #include "placedb/util/option_table.h"
 
 namespace placedb {
@@ -39,7 +40,7 @@ class GroundTruth {
   // Whether `keyframe` is a correct answer for `query`.
   bool IsCorrect(const Frame& query, const Keyframe& keyframe) const;
   // Whether the database holds at least one correct answer for `query`.
-  bool AnyCorrectIn(const Frame& query, const Database& db) const;
+  bool AnyCorrectIn(const Frame& query, const std::vector<Keyframe>& keyframes) const;
 
   // Match list: the query and keyframe ids it names above `max_id` (sorted,
   // unique), ids no frame of the data can have. Poses: none.
@@ -52,5 +53,20 @@ class GroundTruth {
   std::optional<MatchTruth> list_;
   PoseThresholds thresholds_;
 };
+
+// How correctness is judged, as a command or a script gives it: a CSV of
+// true matches (`truth`) or, without one, the query frames' poses.
+struct GroundTruthOptions {
+  // A CSV of true matches (query_id,keyframe ids); "" = poses decide.
+  std::string truth;
+  PoseThresholds poses;
+
+  static const OptionTable<GroundTruthOptions>& Table();
+  std::string Check() const;
+};
+
+// The ground truth for queries read from `queries`: the match list, or the
+// poses, which an image folder lacks (InvalidArgument naming `truth`).
+GroundTruth MakeGroundTruth(const GroundTruthOptions& options, const FrameSourceOptions& queries);
 
 }  // namespace placedb

@@ -24,6 +24,21 @@ const OptionTable<PoseThresholds>& PoseThresholds::Table() {
 
 std::string PoseThresholds::Check() const { return Table().Check(*this); }
 
+const OptionTable<GroundTruthOptions>& GroundTruthOptions::Table() {
+  static const OptionTable<GroundTruthOptions> table = [] {
+    using O = GroundTruthOptions;
+    OptionTable<O> t("ground truth");
+    t.String("truth", PLACEDB_MEMBER(O, truth),
+             "CSV of true matches (query_id,keyframe ids); needed with `images`, else poses decide",
+             kCallers);
+    t.Nest(PLACEDB_MEMBER(O, poses), PoseThresholds::Table(), kCallers);
+    return t;
+  }();
+  return table;
+}
+
+std::string GroundTruthOptions::Check() const { return Table().Check(*this); }
+
 const OptionTable<EvalOptions>& EvalOptions::Table() {
   static const OptionTable<EvalOptions> table = [] {
     using O = EvalOptions;

@@ -12,7 +12,7 @@
 
 #include "placedb/image/feature_rich_crop.h"
 #include "placedb/session/place_database.h"
-#include "placedb/query/query.h"
+#include "placedb/query/result.h"
 
 namespace placedb {
 

@@ -18,8 +18,8 @@ class AddCommand : public Command {
   CLI::App* Register(CLI::App& app) override {
     auto* cmd = app.add_subcommand(
         "add", "add frames to a database as keyframes, with its build settings, and save it");
-    db_.Add(cmd, "");
-    source_.Add(cmd, "frames to add");
+    db_.Add(cmd, /*threads=*/false);
+    source_.Add(cmd);
     cmd->add_flag("--skip-existing", skip_existing_,
                   "skip frames whose id is already a keyframe (default: an error)");
     cmd->add_flag("--quiet", quiet_, "no progress bar");

@@ -1,9 +1,12 @@
 // placedb bench: matching speed against the paper's BFMatcher loop.
 #include <fmt/format.h>
 
-#include "placedb/eval/bench.h"
+#include <nlohmann/json.hpp>
+
 #include "placedb/cli/flags.h"
+#include "placedb/cli/options.h"
 #include "placedb/exe/command.h"
+#include "placedb/util/json_reader.h"
 
 namespace placedb {
 namespace cli {
@@ -14,15 +17,9 @@ class BenchCommand : public Command {
   CLI::App* Register(CLI::App& app) override {
     auto* cmd = app.add_subcommand(
         "bench", "time matching per query: placedb vs the paper's OpenCV BFMatcher loop");
-    db_.Add(cmd, "");
-    source_.Add(cmd, "query frames");
-    cmd->add_option("--queries", options_.num_queries,
-                    "number of query frames (0: all) [0, 1000000]")
-        ->capture_default_str();
-    cmd->add_option("--seed", options_.seed, "seed of the query selection")->capture_default_str();
-    cmd->add_option("--repeat", options_.repeat, "passes over the queries per method [1, 1000]")
-        ->capture_default_str();
-    AddThreadsOption(cmd, options_.threads, "threads of the multi-threaded pass");
+    db_.Add(cmd, /*threads=*/false);
+    source_.Add(cmd);
+    AddOptionFlags(cmd, &options_);
     query_.Add(cmd);
     cmd->add_option("--json", json_, "write the timings as JSON to this file ('-': stdout)");
     return cmd;
@@ -33,9 +30,9 @@ class BenchCommand : public Command {
     const PlaceDatabase db = db_.Open();
     const BenchReport r = RunBench(db, source_.Read(), options_, query);
     fmt::print("bench of {}: {}", db_.dir, FormatBenchReport(r));
-    nlohmann::json j = BenchReportToJson(r);
+    nlohmann::json j = nlohmann::json::parse(BenchReportJson(r));
     j["database"] = db_.dir;
-    WriteJson(json_, j);
+    WriteJson(json_, DumpJson(j, 2));
     return r.rankings_that_differ == 0 ? 0 : 3;
   }
 

@@ -25,6 +25,7 @@ std::unique_ptr<Command> MakeInfoCommand();
 std::unique_ptr<Command> MakeBenchCommand();
 std::unique_ptr<Command> MakeAddCommand();
 std::unique_ptr<Command> MakeRemoveCommand();
+std::unique_ptr<Command> MakeOptionsCommand();
 
 }  // namespace cli
 }  // namespace placedb

@@ -1,10 +1,13 @@
 // placedb eval: the paper's experiment against ground truth.
 #include <fmt/format.h>
 
-#include "placedb/eval/evaluate.h"
+#include <nlohmann/json.hpp>
+
 #include "placedb/cli/flags.h"
+#include "placedb/cli/options.h"
 #include "placedb/exe/command.h"
 #include "placedb/util/check.h"
+#include "placedb/util/json_reader.h"
 
 namespace placedb {
 namespace cli {
@@ -17,13 +20,11 @@ class EvalCommand : public Command {
         "eval",
         "evaluate a database on query frames with ground truth (recall, precision, "
         "latency, size)");
-    db_.Add(cmd, "threads matching and verifying each query");
-    source_.Add(cmd, "query frames");
-    truth_.Add(cmd);
-    AddQuerySelectionOptions(cmd, options_);
-    cmd->add_flag("--sequence", options_.sequence,
-                  "replay the queries in sequence order, each with the previous answer as its "
-                  "prior (for --search cluster)");
+    db_.Add(cmd);
+    source_.Add(cmd);
+    AddOptionFlags(cmd, &truth_);
+    AddOptionFlags(cmd, &options_);
+    cmd->get_option("--all")->excludes(cmd->get_option("--queries"));
     query_.Add(cmd);
     cmd->add_flag("--quiet", quiet_, "no progress bar");
     cmd->add_option("--json", json_, "write the report as JSON to this file ('-': stdout)");
@@ -34,19 +35,19 @@ class EvalCommand : public Command {
     const QueryOptions query = query_.Get();
     const PlaceDatabase db = db_.Open();
     const std::vector<Frame> frames = source_.Read();
-    const GroundTruth truth = truth_.Get(source_, "eval");
+    const GroundTruth truth = MakeGroundTruth(truth_, source_.source);
     EvalOptions options = options_;
     options.progress = !quiet_;
     const EvalReport r = Evaluate(db, frames, truth, options, query);
     fmt::print("eval of {} ({} keyframes, {} features) on {}\n", db_.dir, db.size(),
                FeatureTypeName(db.feature_type()), source_.Describe());
     fmt::print("{}", FormatEvalReport(r));
-    nlohmann::json j = EvalReportToJson(r);
+    nlohmann::json j = nlohmann::json::parse(EvalReportJson(r));
     j["database"] = db_.dir;
     j["queries_from"] = source_.Describe();
     j["seed"] = options.seed;
     j["settings"] = nlohmann::json::parse(db.manifest_json()).value("settings", nlohmann::json::object());
-    WriteJson(json_, j);
+    WriteJson(json_, DumpJson(j, 2));
     return 0;
   }
 
@@ -54,7 +55,7 @@ class EvalCommand : public Command {
   DatabaseArgs db_;
   QueryArgs query_;
   SourceArgs source_;
-  TruthArgs truth_;
+  GroundTruthOptions truth_;
   std::string json_;
   EvalOptions options_;
   bool quiet_ = false;

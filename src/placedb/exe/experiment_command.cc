@@ -1,31 +1,16 @@
-// placedb experiment: the paper's grid of settings on one dataset, as one
-// folder with results.json and report.html.
+// placedb experiment: the paper's experiments in one command (every
+// feature x crop x resize x verification setting on one dataset), resumable,
+// with a report.
 #include <fmt/format.h>
 
-#include "placedb/eval/experiment.h"
 #include "placedb/cli/flags.h"
+#include "placedb/cli/options.h"
 #include "placedb/exe/command.h"
 #include "placedb/util/check.h"
 
 namespace placedb {
 namespace cli {
 namespace {
-
-// "a,b,c" -> {"a", "b", "c"}; an empty item is an error naming the flag.
-std::vector<std::string> SplitList(const std::string& text, const std::string& flag) {
-  std::vector<std::string> items;
-  size_t start = 0;
-  while (true) {
-    const size_t comma = text.find(',', start);
-    const std::string item = text.substr(start, comma == std::string::npos ? std::string::npos
-                                                                            : comma - start);
-    if (item.empty()) PLACEDB_THROW_INVALID("`", flag, "` has an empty item in '", text, "'");
-    items.push_back(item);
-    if (comma == std::string::npos) break;
-    start = comma + 1;
-  }
-  return items;
-}
 
 class ExperimentCommand : public Command {
  public:
@@ -34,48 +19,22 @@ class ExperimentCommand : public Command {
         "experiment",
         "the paper's experiments: build and evaluate every feature x crop x resize x "
         "verification setting on one dataset; writes results.json and report.html");
-    source_.Add(cmd, "query frames (and the database's, unless --db-images/--db-tum)");
-    cmd->add_option("--db-images", db_source_.images,
+    source_.Add(cmd);
+    cmd->add_option("--db-images", db_images_,
                     "database frames from another image folder or list (the paper's training "
                     "sequence); default: the query source");
-    cmd->add_option("--db-tum", db_source_.tum,
-                    "database frames from another TUM RGB-D folder; default: the query source");
-    cmd->add_option("--db-first", db_source_.first, "first database frame id")
+    cmd->add_option("--db-tum", db_tum_,
+                    "database frames from another TUM RGB-D folder; default: the query source")
+        ->excludes(cmd->get_option("--db-images"));
+    cmd->add_option("--db-first", db_first_, "first database frame id")->capture_default_str();
+    cmd->add_option("--db-last", db_last_, "last database frame id (0: to the end)")
         ->capture_default_str();
-    cmd->add_option("--db-last", db_source_.last, "last database frame id (0: to the end)")
-        ->capture_default_str();
-    truth_.Add(cmd);
-    AddQuerySelectionOptions(cmd, options_.eval);
-    cmd->add_option("--features", features_, "features of the grid: orb, surf or both")
-        ->capture_default_str();
-    cmd->add_option("--crop", crops_, "crops of the grid: none, chroma or both")
-        ->capture_default_str();
-    cmd->add_option("--resize", resizes_, "stored-area divisors of the grid, from 1,4,16")
-        ->capture_default_str();
-    cmd->add_option("--verification", verification_,
-                    "verification of the grid: on, off or both")
-        ->capture_default_str();
-    AddExtractorOptions(cmd, options_.build.features);
-    AddCropOptions(cmd, options_.build.crop_options);
-    cmd->add_option("--png-compression", options_.build.png_compression, "PNG level [0, 9]")
-        ->capture_default_str();
-    AddThreadsOption(cmd, options_.build.threads, "building the databases");
-    query_.options = ExperimentOptions::DefaultQuery();
-    query_.Add(cmd);
-    // The grid sets verification; a prior means nothing for random queries.
-    cmd->remove_option(cmd->get_option("--verify"));
-    cmd->remove_option(cmd->get_option("--prior-keyframe"));
-    cmd->add_option("--pictures", options_.num_pictures,
-                    "queries drawn as match pictures, cropped vs uncropped [0, 20]")
-        ->capture_default_str();
-    cmd->add_option("--failures", options_.num_failures,
-                    "failed queries drawn in the report's grid [0, 100]")
-        ->capture_default_str();
+    AddOptionFlags(cmd, &truth_);
+    AddOptionFlags(cmd, &options_);
+    cmd->get_option("--all")->excludes(cmd->get_option("--queries"));
     cmd->add_option("--out", out_, "the experiment's folder (resumed when it holds this "
                                    "experiment)")
         ->required();
-    cmd->add_flag("--overwrite", options_.overwrite,
-                  "start afresh, deleting the folder's earlier experiment");
     cmd->add_flag("--no-report", no_report_, "write results.json only, no report.html");
     cmd->add_flag("--quiet", quiet_, "no progress");
     return cmd;
@@ -83,51 +42,26 @@ class ExperimentCommand : public Command {
 
   int Run() override {
     ExperimentOptions options = options_;
-    options.query = query_.Get();
     options.progress = !quiet_;
-    options.features.clear();
-    for (const std::string& f : SplitList(features_, "features"))
-      options.features.push_back(ParseFeatureType(f));
-    options.crops.clear();
-    for (const std::string& c : SplitList(crops_, "crop"))
-      options.crops.push_back(ParseCropMode(c));
-    options.resizes.clear();
-    for (const std::string& r : SplitList(resizes_, "resize")) {
-      if (r != "1" && r != "4" && r != "16") {
-        PLACEDB_THROW_INVALID("`resize` takes 1, 4 and 16 (got '", r, "')");
-      }
-      options.resizes.push_back(std::stoi(r));
-    }
-    options.verify.clear();
-    for (const std::string& v : SplitList(verification_, "verification")) {
-      if (v != "on" && v != "off") {
-        PLACEDB_THROW_INVALID("`verification` takes on and off (got '", v, "')");
-      }
-      options.verify.push_back(v == "on");
-    }
     PLACEDB_CHECK_OPTIONS(options);
 
     ExperimentData data;
     data.queries = source_.Read();
     data.queries_from = source_.Describe();
+    // The database's frames: the query source's, or another folder read
+    // the same way.
     SourceArgs db_source = source_;
-    if (!db_source_.images.empty() || !db_source_.tum.empty()) {
-      if (!db_source_.images.empty() && !db_source_.tum.empty()) {
-        PLACEDB_THROW_INVALID("`db_images` and `db_tum` exclude each other");
-      }
-      db_source = SourceArgs();
-      db_source.images = db_source_.images;
-      db_source.tum = db_source_.tum;
-      db_source.frame_size = source_.frame_size;
-      db_source.tum_options = source_.tum_options;
-      db_source.image_read = source_.image_read;
+    if (!db_images_.empty() || !db_tum_.empty()) {
+      db_source.bag.clear();
+      db_source.source.images = db_images_;
+      db_source.source.tum = db_tum_;
     }
-    db_source.first = db_source_.first;
-    db_source.last = db_source_.last;
+    db_source.source.first = db_first_;
+    db_source.source.last = db_last_;
     data.database = db_source.Read();
     data.database_from = db_source.Describe();
 
-    const GroundTruth truth = truth_.Get(source_, "experiment");
+    const GroundTruth truth = MakeGroundTruth(truth_, source_.source);
 
     const ExperimentSummary s = RunExperiment(data, truth, options, out_);
     fmt::print("experiment: {} settings ({} finished earlier), {} queries each, database {} "
@@ -142,13 +76,11 @@ class ExperimentCommand : public Command {
 
  private:
   SourceArgs source_;
-  SourceArgs db_source_;
-  TruthArgs truth_;
+  std::string db_images_, db_tum_;
+  int db_first_ = 1, db_last_ = 0;
+  GroundTruthOptions truth_;
   std::string out_;
-  std::string features_ = "orb,surf", crops_ = "none,chroma", resizes_ = "1,4,16";
-  std::string verification_ = "on,off";
   ExperimentOptions options_;
-  QueryArgs query_;
   bool no_report_ = false, quiet_ = false;
 };
 

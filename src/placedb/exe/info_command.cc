@@ -3,13 +3,12 @@
 
 #include <filesystem>
 #include <iostream>
+#include <nlohmann/json.hpp>
 
 #include "placedb/cli/flags.h"
 #include "placedb/exe/command.h"
-#include "placedb/session/place_database.h"
 #include "placedb/util/file_io.h"
 #include "placedb/util/json_reader.h"
-#include "placedb/session/storage_view.h"
 
 namespace placedb {
 namespace cli {
@@ -20,21 +19,22 @@ class InfoCommand : public Command {
  public:
   CLI::App* Register(CLI::App& app) override {
     auto* cmd = app.add_subcommand("info", "describe a database");
-    db_.Add(cmd, "");
+    db_.Add(cmd, /*threads=*/false);
     cmd->add_flag("--json", json_, "print the manifest as JSON");
     return cmd;
   }
 
   int Run() override {
-    const PlaceDatabase place = db_.Open();
-    const StorageView view(place);
-    const Database& db = view.database();
-    const nlohmann::json& m = db.info();
+    // The whole database is opened, so that info also checks every byte of
+    // it (a keyframe table would leave the features unread).
+    const PlaceDatabase db = db_.Open();
     if (json_) {
-      std::cout << DumpJson(m, 2) << "\n";
+      std::cout << db.manifest_json(2) << "\n";
       return 0;
     }
-    const BuildOptions& b = place.build_options();
+    const nlohmann::json m = nlohmann::json::parse(db.manifest_json());
+    const std::vector<Keyframe> keyframes = db.keyframes();
+    const BuildOptions& b = db.build_options();
     fmt::print("database        {}\n", EscapeForTerminal(db_.dir));
     // Descriptive fields the reader does not check: shown only when they are
     // strings (a damaged one must not end the command with a JSON error).
@@ -52,7 +52,7 @@ class InfoCommand : public Command {
     fmt::print("upscale below   {} px (small frames are upscaled for extraction; 0: never)\n",
                b.features.upscale_below);
     size_t cropped = 0, with_pose = 0;
-    for (const Keyframe& k : db.keyframes()) {
+    for (const Keyframe& k : keyframes) {
       cropped += k.crop_channel >= 0;
       with_pose += k.pose.has_value();
     }
@@ -61,7 +61,7 @@ class InfoCommand : public Command {
                db.empty() ? 0.0 : static_cast<double>(db.num_features()) / db.size());
     fmt::print("stored images   {} bytes\n",
                DirectorySize((fs::path(db_.dir) / "images").string()));
-    fmt::print("keyframe file   {} bytes ({})\n", db.keyframes_bytes(), db.keyframes_file());
+    fmt::print("keyframe file   {} bytes ({})\n", db.keyframes_bytes(), db.generation());
     if (m.contains("bytes") && m["bytes"].is_object()) {
       const nlohmann::json& full = m["bytes"].value("full_frames_png", nlohmann::json());
       if (full.is_number_unsigned())

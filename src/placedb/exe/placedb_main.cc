@@ -44,6 +44,7 @@ int main(int argc, char** argv) {
   commands.push_back(cli::MakeBenchCommand());
   commands.push_back(cli::MakeAddCommand());
   commands.push_back(cli::MakeRemoveCommand());
+  commands.push_back(cli::MakeOptionsCommand());
   std::vector<std::pair<CLI::App*, cli::Command*>> table;
   for (auto& c : commands) table.emplace_back(c->Register(app), c.get());
   try {
@@ -58,6 +59,9 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "placedb: error: %s (see placedb --help)\n",
                  placedb::EscapeForTerminal(e.what()).c_str());
     return cli::kExitInput;
+  } catch (...) {
+    // A flag's value the option table refused (InvalidArgument naming it).
+    return cli::ReportCurrentException("placedb", verbose);
   }
   if (verbose) spdlog::set_level(spdlog::level::debug);
   try {

@@ -2,14 +2,15 @@
 #include <fmt/format.h>
 
 #include <filesystem>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
-#include "placedb/eval/pictures.h"
 #include "placedb/cli/flags.h"
+#include "placedb/cli/options.h"
 #include "placedb/exe/command.h"
-#include "placedb/session/place_database.h"
 #include "placedb/util/check.h"
 #include "placedb/util/file_io.h"
+#include "placedb/util/json_reader.h"
 
 namespace placedb {
 namespace cli {
@@ -20,9 +21,9 @@ class QueryCommand : public Command {
  public:
   CLI::App* Register(CLI::App& app) override {
     auto* cmd = app.add_subcommand("query", "find the keyframe that best matches an image");
-    db_.Add(cmd, "threads matching and verifying");
+    db_.Add(cmd);
     cmd->add_option("--image", image_, "query image (a full, uncropped frame)")->required();
-    AddImageReadOptions(cmd, image_read_);
+    AddOptionFlags(cmd, &image_read_);
     query_.Add(cmd);
     cmd->add_option("--json", json_, "write the result as JSON to this file ('-': stdout)");
     cmd->add_option("--draw", draw_,
@@ -78,10 +79,10 @@ class QueryCommand : public Command {
                r.cluster >= 0 ? fmt::format(" (cluster {})", r.cluster) : "", 100.0 * r.coverage,
                r.num_keyframes, r.deadline_reached ? ", stopped by the deadline" : "");
     if (!draw_.empty()) Draw(db, image, r, options);
-    nlohmann::json j = r;
+    nlohmann::json j = nlohmann::json::parse(QueryResultToJson(r));
     j["query"] = image_;
     j["database"] = db_.dir;
-    WriteJson(json_, j);
+    WriteJson(json_, DumpJson(j, 2));
     return 0;
   }
 

@@ -14,7 +14,7 @@ class RemoveCommand : public Command {
  public:
   CLI::App* Register(CLI::App& app) override {
     auto* cmd = app.add_subcommand("remove", "remove keyframes from a database and save it");
-    db_.Add(cmd, "");
+    db_.Add(cmd, /*threads=*/false);
     cmd->add_option("--ids", ids_, "keyframe ids to remove, e.g. 3,4,17")
         ->required()
         ->delimiter(',');

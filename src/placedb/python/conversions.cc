@@ -5,7 +5,6 @@
 #include <cstring>
 #include <vector>
 
-#include "placedb/util/check.h"
 
 namespace placedb {
 namespace python {
@@ -27,7 +26,7 @@ bool IsDtype(const py::array& a, char kind, py::ssize_t itemsize) {
 
 int CheckedDim(const py::array& a, int axis, const std::string& what) {
   if (a.shape(axis) > INT_MAX) {
-    PLACEDB_THROW_INVALID(what + " is too large: shape " + ShapeString(a));
+    throw InvalidArgument(what + " is too large: shape " + ShapeString(a));
   }
   return static_cast<int>(a.shape(axis));
 }
@@ -35,7 +34,7 @@ int CheckedDim(const py::array& a, int axis, const std::string& what) {
 // A keypoint's octave or class_id: a whole number that fits an int.
 int WholeNumber(float v, size_t row, const char* what) {
   if (!std::isfinite(v) || v != std::floor(v) || v < -2147483648.0f || v >= 2147483648.0f) {
-    PLACEDB_THROW_INVALID("keypoint " + std::to_string(row) + ": " + what +
+    throw InvalidArgument("keypoint " + std::to_string(row) + ": " + what +
                           " must be a whole number (got " + std::to_string(v) + ")");
   }
   return static_cast<int>(v);
@@ -53,8 +52,13 @@ std::vector<double> Numbers(py::handle seq, size_t n, const std::string& what) {
     const py::object item = py::reinterpret_steal<py::object>(
         PySequence_GetItem(seq.ptr(), static_cast<py::ssize_t>(i)));
     if (!item) throw py::error_already_set();
-    v.push_back(ToDouble(item, what));
-    if (!std::isfinite(v.back())) PLACEDB_THROW_INVALID(what + " must be finite");
+    if (PyBool_Check(item.ptr()) || PyUnicode_Check(item.ptr()) || !PyNumber_Check(item.ptr())) {
+      throw py::type_error(what + " must hold numbers, got " + TypeName(item));
+    }
+    const double d = PyFloat_AsDouble(item.ptr());
+    if (d == -1.0 && PyErr_Occurred()) throw py::error_already_set();
+    v.push_back(d);
+    if (!std::isfinite(v.back())) throw InvalidArgument(what + " must be finite");
   }
   return v;
 }
@@ -76,7 +80,7 @@ std::string ShapeString(const py::array& a) {
 ImageInput ToImage(py::handle image) {
   const py::array a = AsArray(image, "image");
   if (!IsDtype(a, 'u', 1)) {
-    PLACEDB_THROW_INVALID("image must be a uint8 array (8-bit gray, BGR or BGRA), got dtype " +
+    throw InvalidArgument("image must be a uint8 array (8-bit gray, BGR or BGRA), got dtype " +
                           DtypeName(a));
   }
   int channels = 0;
@@ -85,7 +89,7 @@ ImageInput ToImage(py::handle image) {
   } else if (a.ndim() == 3 && (a.shape(2) == 1 || a.shape(2) == 3 || a.shape(2) == 4)) {
     channels = static_cast<int>(a.shape(2));
   } else {
-    PLACEDB_THROW_INVALID("image must be HxW (gray), HxWx3 (BGR) or HxWx4 (BGRA), got shape " +
+    throw InvalidArgument("image must be HxW (gray), HxWx3 (BGR) or HxWx4 (BGRA), got shape " +
                           ShapeString(a));
   }
   const int rows = CheckedDim(a, 0, "image");
@@ -101,7 +105,7 @@ FeatureInput ToFeatures(py::handle keypoints, py::handle descriptors) {
   FeatureInput in;
   const py::array d = AsArray(descriptors, "descriptors");
   if (d.ndim() != 2) {
-    PLACEDB_THROW_INVALID("descriptors must be an NxD array (one row per keypoint), got shape " +
+    throw InvalidArgument("descriptors must be an NxD array (one row per keypoint), got shape " +
                           ShapeString(d));
   }
   int depth = CV_8U;
@@ -117,7 +121,7 @@ FeatureInput ToFeatures(py::handle keypoints, py::handle descriptors) {
     depth = CV_32F;
     in.descriptors = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(d);
   } else {
-    PLACEDB_THROW_INVALID("descriptors must be uint8 (ORB) or float32 (SURF), got dtype " +
+    throw InvalidArgument("descriptors must be uint8 (ORB) or float32 (SURF), got dtype " +
                           DtypeName(d));
   }
   if (!in.descriptors) throw py::error_already_set();
@@ -128,14 +132,14 @@ FeatureInput ToFeatures(py::handle keypoints, py::handle descriptors) {
 
   const py::array k = AsArray(keypoints, "keypoints");
   if (k.ndim() != 2 || (k.shape(1) != 2 && k.shape(1) != 7)) {
-    PLACEDB_THROW_INVALID(
+    throw InvalidArgument(
         "keypoints must be an Nx2 (x, y) or Nx7 (x, y, size, angle, response, octave, "
         "class_id) array, got shape " +
         ShapeString(k));
   }
   const char kind = k.dtype().kind();
   if (kind != 'f' && kind != 'i' && kind != 'u') {
-    PLACEDB_THROW_INVALID("keypoints must be a real-valued array (float32 preferred), got dtype " +
+    throw InvalidArgument("keypoints must be a real-valued array (float32 preferred), got dtype " +
                           DtypeName(k));
   }
   const auto kf = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(k);
@@ -195,37 +199,8 @@ py::array FromImage(const cv::Mat& image) {
   return std::move(out);
 }
 
-py::object FromJson(const nlohmann::json& j) {
-  switch (j.type()) {
-    case nlohmann::json::value_t::null:
-    case nlohmann::json::value_t::discarded:
-      return py::none();
-    case nlohmann::json::value_t::boolean:
-      return py::bool_(j.get<bool>());
-    case nlohmann::json::value_t::number_integer:
-      return py::int_(j.get<int64_t>());
-    case nlohmann::json::value_t::number_unsigned:
-      return py::int_(j.get<uint64_t>());
-    case nlohmann::json::value_t::number_float:
-      return py::float_(j.get<double>());
-    case nlohmann::json::value_t::string:
-      return py::str(j.get_ref<const std::string&>());
-    case nlohmann::json::value_t::binary: {
-      const auto& b = j.get_binary();
-      return py::bytes(reinterpret_cast<const char*>(b.data()), b.size());
-    }
-    case nlohmann::json::value_t::array: {
-      py::list list;
-      for (const auto& e : j) list.append(FromJson(e));
-      return std::move(list);
-    }
-    case nlohmann::json::value_t::object: {
-      py::dict dict;
-      for (auto it = j.begin(); it != j.end(); ++it) dict[py::str(it.key())] = FromJson(it.value());
-      return std::move(dict);
-    }
-  }
-  return py::none();
+py::object FromJsonText(const std::string& json) {
+  return py::module_::import("json").attr("loads")(py::str(json));
 }
 
 py::tuple TranslationTuple(const Pose& pose) {
@@ -246,90 +221,10 @@ Pose MakePose(py::handle translation, py::handle quaternion_xyzw) {
   const Eigen::Quaterniond rotation(q[3], q[0], q[1], q[2]);  // (w, x, y, z)
   const double norm = rotation.norm();
   if (!(norm > 1e-12) || !std::isfinite(norm)) {
-    PLACEDB_THROW_INVALID("quaternion_xyzw must not be zero");
+    throw InvalidArgument("quaternion_xyzw must not be zero");
   }
   pose.rotation = rotation.normalized();
   return pose;
-}
-
-Pose ToPose(py::handle pose, const std::string& what) {
-  if (py::isinstance<Pose>(pose)) return pose.cast<Pose>();
-  if (PySequence_Check(pose.ptr()) && !PyUnicode_Check(pose.ptr()) &&
-      PySequence_Size(pose.ptr()) == 2) {
-    const py::sequence s = py::reinterpret_borrow<py::sequence>(pose);
-    return MakePose(s[0], s[1]);
-  }
-  if (PyErr_Occurred()) PyErr_Clear();
-  throw py::type_error(what +
-                       " must be a placedb.Pose or a pair (translation (x, y, z), "
-                       "quaternion (x, y, z, w)), got " +
-                       TypeName(pose));
-}
-
-int ToInt(py::handle value, const std::string& name) {
-  if (PyBool_Check(value.ptr()) || !PyIndex_Check(value.ptr())) {
-    throw py::type_error(name + " must be an integer, got " + TypeName(value));
-  }
-  const py::object index = py::reinterpret_steal<py::object>(PyNumber_Index(value.ptr()));
-  if (!index) throw py::error_already_set();
-  int overflow = 0;
-  const long long v = PyLong_AsLongLongAndOverflow(index.ptr(), &overflow);
-  if (overflow != 0 || v < INT_MIN || v > INT_MAX) {
-    PLACEDB_THROW_INVALID(name + " does not fit a 32-bit integer (got " +
-                          py::str(index).cast<std::string>() + ")");
-  }
-  return static_cast<int>(v);
-}
-
-uint64_t ToUint64(py::handle value, const std::string& name) {
-  if (PyBool_Check(value.ptr()) || !PyIndex_Check(value.ptr())) {
-    throw py::type_error(name + " must be an integer, got " + TypeName(value));
-  }
-  const py::object index = py::reinterpret_steal<py::object>(PyNumber_Index(value.ptr()));
-  if (!index) throw py::error_already_set();
-  const unsigned long long v = PyLong_AsUnsignedLongLong(index.ptr());
-  if (PyErr_Occurred()) {
-    PyErr_Clear();
-    PLACEDB_THROW_INVALID(name + " must be in [0, 2^64) (got " +
-                          py::str(index).cast<std::string>() + ")");
-  }
-  return static_cast<uint64_t>(v);
-}
-
-double ToDouble(py::handle value, const std::string& name) {
-  if (PyBool_Check(value.ptr()) || PyUnicode_Check(value.ptr()) || PyBytes_Check(value.ptr()) ||
-      !PyNumber_Check(value.ptr())) {
-    throw py::type_error(name + " must be a number, got " + TypeName(value));
-  }
-  const double v = PyFloat_AsDouble(value.ptr());
-  if (v == -1.0 && PyErr_Occurred()) {
-    PyErr_Clear();
-    throw py::type_error(name + " must be a real number, got " + TypeName(value));
-  }
-  return v;
-}
-
-bool ToBool(py::handle value, const std::string& name) {
-  if (PyBool_Check(value.ptr())) return value.ptr() == Py_True;
-  if (TypeName(value) == std::string("numpy.bool_")) return PyObject_IsTrue(value.ptr()) == 1;
-  throw py::type_error(name + " must be True or False, got " + TypeName(value));
-}
-
-std::string ToString(py::handle value, const std::string& name) {
-  if (!PyUnicode_Check(value.ptr())) {
-    throw py::type_error(name + " must be a str, got " + TypeName(value));
-  }
-  return value.cast<std::string>();
-}
-
-std::string ToPath(py::handle value, const std::string& name) {
-  const py::object path = py::reinterpret_steal<py::object>(PyOS_FSPath(value.ptr()));
-  if (!path) {
-    PyErr_Clear();
-    throw py::type_error(name + " must be a path (str or os.PathLike), got " + TypeName(value));
-  }
-  if (PyBytes_Check(path.ptr())) return path.cast<py::bytes>();
-  return path.cast<std::string>();
 }
 
 }  // namespace python

@@ -7,12 +7,10 @@
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 
-#include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <string>
 
-#include "placedb/feature/types.h"
-#include "placedb/util/pose.h"
+#include "placedb/placedb.h"
 
 namespace placedb {
 namespace python {
@@ -53,8 +51,9 @@ py::tuple FromFeatures(const FeatureSet& features, int empty_cols);
 // A BGR (or gray) 8-bit cv::Mat as a new HxWx3 (HxW) uint8 array.
 py::array FromImage(const cv::Mat& image);
 
-// JSON as Python: null -> None, bool, int, float, str, list, dict.
-py::object FromJson(const nlohmann::json& j);
+// The library's JSON text as Python (json.loads): null -> None, bool, int,
+// float, str, list, dict.
+py::object FromJsonText(const std::string& json);
 
 // Pose <-> Python tuples: translation (x, y, z), quaternion (x, y, z, w).
 py::tuple TranslationTuple(const Pose& pose);
@@ -62,19 +61,6 @@ py::tuple QuaternionTuple(const Pose& pose);
 // A pose from a translation (3 numbers) and a quaternion (x, y, z, w; 4
 // numbers, normalised). Non-finite values or a zero quaternion: ValueError.
 Pose MakePose(py::handle translation, py::handle quaternion_xyzw);
-// A placedb.Pose, or a pair (translation, quaternion_xyzw).
-Pose ToPose(py::handle pose, const std::string& what);
-
-// Python values for options, with errors naming the option: TypeError for a
-// value of the wrong type, ValueError for an integer that does not fit.
-int ToInt(py::handle value, const std::string& name);
-uint64_t ToUint64(py::handle value, const std::string& name);
-double ToDouble(py::handle value, const std::string& name);
-bool ToBool(py::handle value, const std::string& name);
-std::string ToString(py::handle value, const std::string& name);
-// A str or an os.PathLike.
-std::string ToPath(py::handle value, const std::string& name);
-
 // "float32", "int64", ... of an array-like.
 std::string DtypeName(const py::array& a);
 // "(480, 640, 3)".

@@ -19,21 +19,9 @@
 #include <utility>
 #include <vector>
 
-#include "placedb/dataset/frame.h"
-#include "placedb/dataset/image_folder.h"
-#include "placedb/dataset/match_truth.h"
-#include "placedb/dataset/tum.h"
-#include "placedb/eval/evaluate.h"
-#include "placedb/eval/ground_truth.h"
-#include "placedb/eval/pictures.h"
-#include "placedb/build/builder.h"
-#include "placedb/session/place_database.h"
-#include "placedb/query/query.h"
+#include "placedb/placedb.h"
 #include "placedb/python/conversions.h"
-#include "placedb/python/options.h"
-#include "placedb/util/check.h"
-#include "placedb/util/error.h"
-#include "placedb/util/version.h"
+#include "placedb/python/option_kwargs.h"
 
 namespace placedb {
 namespace python {
@@ -43,59 +31,15 @@ namespace fs = std::filesystem;
 using OptionalPath = std::optional<fs::path>;
 using OptionalSize = std::optional<std::pair<int, int>>;
 
-void ThrowIfInvalid(const std::string& reason, const char* what) {
-  if (!reason.empty()) PLACEDB_THROW_INVALID("invalid ", what, ": ", reason);
-}
-
-// ---- frame sources: an image folder or list, or a TUM RGB-D folder --------
-// The arguments of the CLI's --images / --tum / --first / --last /
-// --frame-size, read with the same library calls (ReadImages,
-// ReadTumSequence, ResizeFramesTo) and described the same way in the
-// manifest ("images:DIR [1..20]").
-struct Source {
-  std::string images, tum;
-  int first = 1;
-  int last = 0;
-  OptionalSize frame_size;
-  TumOptions tum_options;
-};
-
-Source MakeSource(const OptionalPath& images, const OptionalPath& tum, int first, int last,
-                  const OptionalSize& frame_size, double max_time_diff,
-                  const std::string& tum_rgb_list, const std::string& tum_groundtruth) {
-  if (images && tum) PLACEDB_THROW_INVALID("give images= or tum=, not both");
-  if (!images && !tum) PLACEDB_THROW_INVALID("give images= (a folder or list) or tum=");
-  Source s;
-  if (images) s.images = images->string();
-  if (tum) s.tum = tum->string();
-  s.first = first;
-  s.last = last;
-  if (frame_size) {
-    const auto [w, h] = *frame_size;
-    if (w < 16 || h < 16 || w > 16384 || h > 16384) {
-      PLACEDB_THROW_INVALID("`frame_size`: each side must be in [16, 16384] (got (", w, ", ", h,
-                            "))");
-    }
-    s.frame_size = frame_size;
+// Option structs are checked as the library checks them: InvalidArgument
+// (placedb.InvalidArgumentError, a ValueError) naming the keyword.
+template <typename T>
+void CheckOptions(const T& options) {
+  const std::string reason = options.Check();
+  if (!reason.empty()) {
+    throw InvalidArgument(std::string("invalid ") + T::Table().what() + ": " + reason,
+                          "python/module.cc:" + std::to_string(__LINE__));
   }
-  s.tum_options.max_time_difference = max_time_diff;
-  s.tum_options.rgb_list = tum_rgb_list;
-  s.tum_options.groundtruth = tum_groundtruth;
-  ThrowIfInvalid(s.tum_options.Check(), "TUM options");
-  return s;
-}
-
-std::vector<Frame> ReadFrames(const Source& s) {
-  std::vector<Frame> frames;
-  if (!s.images.empty()) {
-    frames = ReadImages(s.images, s.first, s.last);
-  } else {
-    frames = SelectFrameRange(ReadTumSequence(s.tum, s.tum_options), s.first, s.last, "TUM frame");
-  }
-  if (s.frame_size) {
-    ResizeFramesTo(&frames, cv::Size(s.frame_size->first, s.frame_size->second));
-  }
-  return frames;
 }
 
 // ---- errors ----------------------------------------------------------------
@@ -168,14 +112,6 @@ void RegisterErrors(py::module_& m) {
   });
 }
 
-std::string Describe(const Source& s) {
-  const std::string range = FrameRangeSuffix(s.first, s.last);
-  const std::string size =
-      s.frame_size ? fmt::format(" at {}x{}", s.frame_size->first, s.frame_size->second) : "";
-  const std::string what = !s.images.empty() ? "images:" + s.images : "tum:" + s.tum;
-  return what + range + size;
-}
-
 // ---- results ---------------------------------------------------------------
 std::string PoseRepr(const Pose& p) {
   const auto& t = p.translation;
@@ -217,28 +153,20 @@ std::string ResultRepr(const QueryResult& r) {
 }
 
 // ---- the database session -------------------------------------------------
-std::unique_ptr<PlaceDatabase> OpenDatabase(const fs::path& dir, int threads,
-                                            const std::optional<std::string>& expected_features,
-                                            const OptionalSize& partition,
-                                            const std::string& partition_scheme,
-                                            const std::optional<std::vector<int32_t>>& keyframes,
-                                            double cluster_radius, int cluster_keyframes) {
+std::unique_ptr<PlaceDatabase> OpenDatabase(const fs::path& dir, const py::kwargs& kwargs) {
   OpenOptions o;
-  o.threads = threads;
-  if (expected_features) o.expected_features = ParseFeatureType(*expected_features);
-  if (partition && keyframes) PLACEDB_THROW_INVALID("give partition= or keyframes=, not both");
-  if (partition) {
-    o.subset = KeyframeSubset::Partition(partition->first, partition->second,
-                                         ParsePartitionScheme(partition_scheme));
-  } else if (keyframes) {
-    o.subset = KeyframeSubset::Ids(*keyframes);
-  }
-  o.clusters.radius_m = cluster_radius;
-  o.clusters.time_keyframes = cluster_keyframes;
-  ThrowIfInvalid(o.Check(), "open options");
+  ApplyKwargs(kwargs, {Target(&o)}, "PlaceDatabase");
+  CheckOptions(o);
   const std::string path = dir.string();
   py::gil_scoped_release release;
   return std::make_unique<PlaceDatabase>(PlaceDatabase::Open(path, o));
+}
+
+QueryOptions QueryOptionsFrom(const py::kwargs& kwargs, const char* function) {
+  QueryOptions o;
+  ApplyKwargs(kwargs, {Target(&o)}, function);
+  CheckOptions(o);
+  return o;
 }
 
 // A keyframe of an open database, copied out of it.
@@ -269,7 +197,7 @@ int DescriptorColumns(const PlaceDatabase& db) {
 }
 
 QueryResult QueryImage(const PlaceDatabase& db, const py::object& image, const py::kwargs& kwargs) {
-  const QueryOptions options = QueryOptionsFrom(kwargs);
+  const QueryOptions options = QueryOptionsFrom(kwargs, "query");
   const ImageInput in = ToImage(image);
   py::gil_scoped_release release;
   return db.Query(in.mat, options);
@@ -277,7 +205,7 @@ QueryResult QueryImage(const PlaceDatabase& db, const py::object& image, const p
 
 QueryResult QueryFeatures(const PlaceDatabase& db, const py::object& keypoints,
                           const py::object& descriptors, const py::kwargs& kwargs) {
-  const QueryOptions options = QueryOptionsFrom(kwargs);
+  const QueryOptions options = QueryOptionsFrom(kwargs, "query_features");
   const FeatureInput in = ToFeatures(keypoints, descriptors);
   py::gil_scoped_release release;
   return db.Query(in.set, options);
@@ -287,7 +215,7 @@ QueryResult QueryFeatures(const PlaceDatabase& db, const py::object& keypoints,
 // NumPy arrays.
 py::dict ExplainImage(const PlaceDatabase& db, const py::object& image, int32_t id,
                       const py::kwargs& kwargs) {
-  const QueryOptions options = QueryOptionsFrom(kwargs);
+  const QueryOptions options = QueryOptionsFrom(kwargs, "explain");
   const ImageInput in = ToImage(image);
   MatchDetail d;
   {
@@ -328,7 +256,7 @@ py::dict ExplainImage(const PlaceDatabase& db, const py::object& image, int32_t 
 // The query beside keyframe `id` with the matches drawn (query --draw).
 py::array DrawMatch(const PlaceDatabase& db, const py::object& image, int32_t id,
                     const std::string& caption, const py::kwargs& kwargs) {
-  const QueryOptions options = QueryOptionsFrom(kwargs);
+  const QueryOptions options = QueryOptionsFrom(kwargs, "draw_match");
   const ImageInput in = ToImage(image);
   cv::Mat picture;
   {
@@ -349,15 +277,13 @@ py::tuple Extract(const PlaceDatabase& db, const py::object& image) {
 }
 
 // ---- build, evaluate -------------------------------------------------------
-py::dict Build(const fs::path& out, const OptionalPath& images, const OptionalPath& tum, int first,
-               int last, const OptionalSize& frame_size, double max_time_diff,
-               const std::string& tum_rgb_list, const std::string& tum_groundtruth,
-               const py::kwargs& settings) {
-  BuildOptions defaults;
-  defaults.progress = false;
-  const BuildOptions options = BuildOptionsFrom(settings, defaults);  // before any work
-  const Source source = MakeSource(images, tum, first, last, frame_size, max_time_diff,
-                                   tum_rgb_list, tum_groundtruth);
+py::dict Build(const fs::path& out, const py::kwargs& kwargs) {
+  FrameSourceOptions source;
+  BuildOptions options;
+  options.progress = false;
+  ApplyKwargs(kwargs, {Target(&source), Target(&options)}, "build");
+  CheckOptions(source);  // before any work
+  CheckOptions(options);
   const std::string out_dir = out.string();
   BuildReport report;
   {
@@ -366,53 +292,38 @@ py::dict Build(const fs::path& out, const OptionalPath& images, const OptionalPa
     spdlog::info("building {} from {} frames ({} features, crop {}, resize 1/{})", out_dir,
                  frames.size(), FeatureTypeName(options.features.type), CropModeName(options.crop),
                  options.resize);
-    report = BuildDatabase(frames, options, out_dir, Describe(source));
+    report = BuildDatabase(frames, options, out_dir, DescribeFrameSource(source));
   }
-  return FromJson(BuildReportToJson(report, out_dir)).cast<py::dict>();
+  return FromJsonText(BuildReportJson(report, out_dir)).cast<py::dict>();
 }
 
-py::dict EvaluateDatabase(const PlaceDatabase& db, const OptionalPath& images,
-                          const OptionalPath& tum, int first, int last,
-                          const OptionalSize& frame_size, double max_time_diff,
-                          const std::string& tum_rgb_list, const std::string& tum_groundtruth,
-                          const OptionalPath& truth_csv, double max_dist, double max_angle,
-                          int num_queries, bool all, uint64_t seed, bool sequence, bool progress,
-                          const py::kwargs& query_options) {
-  const QueryOptions query = QueryOptionsFrom(query_options);
+py::dict EvaluateDatabase(const PlaceDatabase& db, const py::kwargs& kwargs) {
+  FrameSourceOptions source;
+  GroundTruthOptions truth_options;
   EvalOptions options;
-  options.num_queries = num_queries;
-  options.all = all;
-  options.seed = seed;
-  options.sequence = sequence;
-  options.progress = progress;
-  ThrowIfInvalid(options.Check(), "evaluation options");
-  PoseThresholds thresholds;
-  thresholds.max_distance_m = max_dist;
-  thresholds.max_angle_deg = max_angle;
-  ThrowIfInvalid(thresholds.Check(), "pose thresholds");
-  const Source source = MakeSource(images, tum, first, last, frame_size, max_time_diff,
-                                   tum_rgb_list, tum_groundtruth);
-  if (!truth_csv && !source.images.empty()) {
-    PLACEDB_THROW_INVALID(
-        "evaluate with images= needs truth_csv= (a CSV of true matches), or use tum= with poses");
-  }
-  const std::string truth_path = truth_csv ? truth_csv->string() : "";
+  options.progress = false;
+  QueryOptions query;
+  ApplyKwargs(kwargs, {Target(&source), Target(&truth_options), Target(&options), Target(&query)},
+              "evaluate");
+  CheckOptions(source);
+  CheckOptions(truth_options);
+  CheckOptions(options);
+  CheckOptions(query);
   EvalReport report;
   {
     py::gil_scoped_release release;
     const std::vector<Frame> frames = ReadFrames(source);
-    const GroundTruth truth = truth_csv ? GroundTruth::FromMatchList(ReadMatchTruth(truth_path))
-                                        : GroundTruth::FromPoses(thresholds);
+    const GroundTruth truth = MakeGroundTruth(truth_options, source);
     report = Evaluate(db, frames, truth, options, query);
   }
-  return FromJson(EvalReportToJson(report)).cast<py::dict>();
+  return FromJsonText(EvalReportJson(report)).cast<py::dict>();
 }
 
 py::array ReadImage(const fs::path& path, int64_t max_image_pixels) {
   Frame frame;
   frame.image_path = path.string();
   frame.read.max_pixels = max_image_pixels;
-  ThrowIfInvalid(frame.read.Check(), "max_image_pixels");
+  CheckOptions(frame.read);
   cv::Mat image;
   {
     py::gil_scoped_release release;
@@ -426,7 +337,7 @@ void SetLogLevel(const std::string& level) {
   static const std::vector<std::string> names = {"trace", "debug",    "info", "warn",
                                                  "error", "critical", "off"};
   if (std::find(names.begin(), names.end(), level) == names.end()) {
-    PLACEDB_THROW_INVALID("unknown log level '", level,
+    throw InvalidArgument("unknown log level '" + level +
                           "' (expected trace, debug, info, warn, error, critical or off)");
   }
   spdlog::set_level(spdlog::level::from_str(level));
@@ -452,7 +363,7 @@ Python threads at once.
     kp, desc = db.extract(image)          # Nx7 float32, Nx32 uint8 (ORB)
     same = db.query_features(kp, desc)    # the same answer as db.query(image)
     report = placedb.evaluate(db, images="data/rtabmap_loop/images",
-                              truth_csv="data/rtabmap_loop/ground_truth.csv", num_queries=10)
+                              truth="data/rtabmap_loop/ground_truth.csv", queries=10)
 
 Images are uint8 NumPy arrays: HxW (gray), HxWx3 (BGR, OpenCV's order) or
 HxWx4 (BGRA); other strides are copied, other dtypes are a ValueError.
@@ -494,11 +405,12 @@ constexpr const char* kBuildDoc = R"doc(Builds a keyframe database at `out` (pla
 Frames: images= (a folder of images sorted by name, or a text file listing
 image paths) or tum= (a TUM RGB-D folder: rgb.txt, groundtruth.txt), with
 first/last (1-based ids, inclusive; last=0: to the end), frame_size=(W, H)
-to simulate a smaller camera, and for TUM max_time_diff (s), tum_rgb_list,
-tum_groundtruth. The database is written atomically: a failure leaves any
-previous database at `out` intact.
+or "WxH" to simulate a smaller camera, and for TUM max_time_diff (s),
+tum_rgb_list, tum_groundtruth. The database is written atomically: a failure
+leaves any previous database at `out` intact.
 
-Keyword settings (BuildOptions; see build_setting_defaults()):
+Keywords (the frame source, then the build settings; see
+option_defaults()['build']):
 
 {}
 Returns the build report as a dict (the CLI's --json): database,
@@ -509,21 +421,22 @@ image_bytes, feature_bytes, full_png_bytes, index_bytes, seconds.
 constexpr const char* kEvaluateDoc =
     R"doc(The paper's experiment (placedb eval): random queries against `db`, judged against ground truth.
 
-Query frames: images= with truth_csv= (a CSV of true matches,
+Query frames as for build(): images= with truth= (a CSV of true matches,
 "query_id,keyframe ids"), or tum= with poses (a keyframe within max_dist
-metres and max_angle degrees of the query is correct; or truth_csv=).
-first/last, frame_size, max_time_diff, tum_rgb_list, tum_groundtruth as in
-build(). num_queries random queries with ground truth (all=True: every one),
-chosen by seed; sequence=True replays them in order, each with the previous
-answer as prior_keyframe (for search='cluster').
+metres and max_angle degrees of the query is correct; or truth=). queries
+random queries with ground truth (all=True: every one), chosen by seed;
+sequence=True replays them in order, each with the previous answer as
+prior_keyframe (for search='cluster'). Every keyword of query() is taken too.
 
-Keyword query options as for PlaceDatabase.query().
+Keywords (the frame source, the ground truth, the evaluation; see
+option_defaults()['evaluate']):
 
-Returns the library's EvalReportToJson as a dict: num_queries, num_correct,
-num_correct_at_5, num_answerable, recall_at_1, recall_at_5, verified,
-precision_recall {{average_precision, recall_at_full_precision, min_score,
-at_threshold, curve}}, latency_ms and stage_ms {{mean, p50, p99, max}},
-searches, mean_coverage, num_deadline_reached, database_bytes,
+{}
+Returns the library's evaluation report as a dict: num_queries,
+num_correct, num_correct_at_5, num_answerable, recall_at_1, recall_at_5,
+verified, precision_recall {{average_precision, recall_at_full_precision,
+min_score, at_threshold, curve}}, latency_ms and stage_ms {{mean, p50, p99,
+max}}, searches, mean_coverage, num_deadline_reached, database_bytes,
 full_frames_png_bytes, reduction_vs_full, truth, and queries (each with its
 full QueryResult dict).
 )doc";
@@ -620,10 +533,7 @@ PYBIND11_MODULE(placedb, m) {
                     "its stored PNG (database directory joined); '' when none")
       .def(
           "to_dict",
-          [](const RankedKeyframe& k) {
-            const nlohmann::json j = k;
-            return FromJson(j);
-          },
+          [](const RankedKeyframe& k) { return FromJsonText(RankedKeyframeToJson(k)); },
           "The library's JSON of this entry, as a dict.")
       .def("__eq__", [](const RankedKeyframe& a, const RankedKeyframe& b) { return a == b; })
       .def("__repr__", &RankedRepr);
@@ -658,18 +568,13 @@ PYBIND11_MODULE(placedb, m) {
       .def_readonly("times", &QueryResult::times, "StageTimes, milliseconds")
       .def(
           "to_dict",
-          [](const QueryResult& r) {
-            const nlohmann::json j = r;
-            return FromJson(j);
-          },
+          [](const QueryResult& r) { return FromJsonText(QueryResultToJson(r)); },
           "The library's JSON of the result (what `placedb query --json` writes, without the "
           "query and database paths), as a dict.")
       .def(
           "to_json",
           [](const QueryResult& r, std::optional<int> indent) {
-            const nlohmann::json j = r;
-            return j.dump(indent ? *indent : -1, ' ', false,
-                          nlohmann::json::error_handler_t::replace);
+            return QueryResultToJson(r, indent ? *indent : -1);
           },
           py::arg("indent") = py::none(), "The library's JSON of the result, as a str.")
       .def("__repr__", &ResultRepr);
@@ -723,34 +628,22 @@ PYBIND11_MODULE(placedb, m) {
                            k.keyframe.pose ? PoseRepr(*k.keyframe.pose) : "None");
       });
 
-  const char* open_doc =
-      "Opens the database directory `dir` (PlaceDatabase::Open).\n\n"
-      "threads: threads each query uses for matching and verification (0: one per core) "
-      "[0, 1024].\n"
-      "expected_features: 'orb' or 'surf': a database of another type is a ValueError.\n"
-      "partition: (i, n): open only partition i of n of the keyframes, by partition_scheme "
-      "'contiguous' or 'interleaved'.\n"
-      "keyframes: open only these keyframe ids.\n"
-      "cluster_radius (metres), cluster_keyframes: the spatial-locality clusters of "
-      "search='cluster'.\n\n"
-      "A missing or damaged database: RuntimeError; bad options: ValueError.";
+  OpenOptions open_defaults;
+  const std::string open_doc =
+      "Opens the database directory `dir` (PlaceDatabase::Open). Keyword options (OpenOptions; "
+      "see option_defaults()['open']):\n\n" +
+      DescribeKwargs({Target(&open_defaults)}) +
+      "\nA missing database: placedb.NotFoundError (a FileNotFoundError); a damaged one: "
+      "placedb.CorruptDatabaseError; bad options: placedb.InvalidArgumentError (a ValueError).";
+  QueryOptions query_defaults;
   const std::string query_doc =
-      fmt::format(fmt::runtime(kQueryDoc), DescribeOptions(QuerySpecs(), QueryOptions()));
+      fmt::format(fmt::runtime(kQueryDoc), DescribeKwargs({Target(&query_defaults)}));
 
   py::class_<PlaceDatabase>(m, "PlaceDatabase",
                             "An open keyframe database with the feature extractor its queries "
                             "need (the library's session API). Queries are thread-safe.")
-      .def(py::init(&OpenDatabase), py::arg("dir"), py::kw_only(), py::arg("threads") = 1,
-           py::arg("expected_features") = py::none(), py::arg("partition") = py::none(),
-           py::arg("partition_scheme") = "contiguous", py::arg("keyframes") = py::none(),
-           py::arg("cluster_radius") = ClusterOptions().radius_m,
-           py::arg("cluster_keyframes") = ClusterOptions().time_keyframes, open_doc)
-      .def_static("open", &OpenDatabase, py::arg("dir"), py::kw_only(), py::arg("threads") = 1,
-                  py::arg("expected_features") = py::none(), py::arg("partition") = py::none(),
-                  py::arg("partition_scheme") = "contiguous", py::arg("keyframes") = py::none(),
-                  py::arg("cluster_radius") = ClusterOptions().radius_m,
-                  py::arg("cluster_keyframes") = ClusterOptions().time_keyframes,
-                  "The same as PlaceDatabase(dir, ...).")
+      .def(py::init(&OpenDatabase), py::arg("dir"), open_doc.c_str())
+      .def_static("open", &OpenDatabase, py::arg("dir"), "The same as PlaceDatabase(dir, ...).")
       .def_property_readonly("size", &PlaceDatabase::size, "number of keyframes opened")
       .def("__len__", &PlaceDatabase::size)
       .def_property_readonly(
@@ -762,7 +655,7 @@ PYBIND11_MODULE(placedb, m) {
                              "float32)")
       .def_property_readonly("directory", &PlaceDatabase::directory)
       .def_property_readonly(
-          "manifest", [](const PlaceDatabase& db) { return FromJson(nlohmann::json::parse(db.manifest_json())); },
+          "manifest", [](const PlaceDatabase& db) { return FromJsonText(db.manifest_json()); },
           "the manifest (every build setting, counts, sizes, creation info), a dict")
       .def_property_readonly(
           "keyframe_ids",
@@ -809,31 +702,20 @@ PYBIND11_MODULE(placedb, m) {
                            db.size(), FeatureTypeName(db.feature_type()));
       });
 
+  FrameSourceOptions source_defaults;
   BuildOptions build_defaults;
   build_defaults.progress = false;
-  const std::string build_doc =
-      fmt::format(fmt::runtime(kBuildDoc), DescribeOptions(BuildSpecs(), build_defaults));
-  const TumOptions tum_defaults;
-  m.def("build", &Build, py::arg("out"), py::arg("images") = py::none(),
-        py::arg("tum") = py::none(), py::kw_only(), py::arg("first") = 1, py::arg("last") = 0,
-        py::arg("frame_size") = py::none(),
-        py::arg("max_time_diff") = tum_defaults.max_time_difference,
-        py::arg("tum_rgb_list") = tum_defaults.rgb_list,
-        py::arg("tum_groundtruth") = tum_defaults.groundtruth, build_doc.c_str());
+  const std::string build_doc = fmt::format(
+      fmt::runtime(kBuildDoc), DescribeKwargs({Target(&source_defaults), Target(&build_defaults)}));
+  m.def("build", &Build, py::arg("out"), build_doc.c_str());
 
-  const EvalOptions eval_defaults;
-  const PoseThresholds pose_defaults;
-  m.def("evaluate", &EvaluateDatabase, py::arg("db"), py::arg("images") = py::none(),
-        py::arg("tum") = py::none(), py::kw_only(), py::arg("first") = 1, py::arg("last") = 0,
-        py::arg("frame_size") = py::none(),
-        py::arg("max_time_diff") = tum_defaults.max_time_difference,
-        py::arg("tum_rgb_list") = tum_defaults.rgb_list,
-        py::arg("tum_groundtruth") = tum_defaults.groundtruth, py::arg("truth_csv") = py::none(),
-        py::arg("max_dist") = pose_defaults.max_distance_m,
-        py::arg("max_angle") = pose_defaults.max_angle_deg,
-        py::arg("num_queries") = eval_defaults.num_queries, py::arg("all") = eval_defaults.all,
-        py::arg("seed") = eval_defaults.seed, py::arg("sequence") = eval_defaults.sequence,
-        py::arg("progress") = false, fmt::format(fmt::runtime(kEvaluateDoc)).c_str());
+  GroundTruthOptions truth_defaults;
+  EvalOptions eval_defaults;
+  eval_defaults.progress = false;
+  const std::string evaluate_doc = fmt::format(
+      fmt::runtime(kEvaluateDoc),
+      DescribeKwargs({Target(&source_defaults), Target(&truth_defaults), Target(&eval_defaults)}));
+  m.def("evaluate", &EvaluateDatabase, py::arg("db"), evaluate_doc.c_str());
 
   m.def("read_image", &ReadImage, py::arg("path"), py::kw_only(),
         py::arg("max_image_pixels") = kDefaultMaxImagePixels,
@@ -841,13 +723,42 @@ PYBIND11_MODULE(placedb, m) {
         "evaluate read frames), after its header is checked against max_image_pixels (width x "
         "height, [1, 2^30]); ValueError when it cannot be read or is larger.");
   m.def(
-      "query_option_defaults", []() { return OptionValues(QuerySpecs(), QueryOptions()); },
+      "query_option_defaults",
+      []() {
+        QueryOptions o;
+        return OptionDefaults({Target(&o)});
+      },
       "The query options (keywords of query(), query_features(), evaluate()) and their "
       "defaults, a dict.");
   m.def(
       "build_setting_defaults",
-      [build_defaults]() { return OptionValues(BuildSpecs(), build_defaults); },
+      []() {
+        BuildOptions o;
+        o.progress = false;
+        return OptionDefaults({Target(&o)});
+      },
       "The build settings (keywords of build()) and their defaults, a dict.");
+  m.def(
+      "option_defaults",
+      []() {
+        py::dict all;
+        OpenOptions open;
+        QueryOptions query;
+        FrameSourceOptions source;
+        BuildOptions build;
+        build.progress = false;
+        GroundTruthOptions truth;
+        EvalOptions eval;
+        eval.progress = false;
+        all["open"] = OptionDefaults({Target(&open)});
+        all["query"] = OptionDefaults({Target(&query)});
+        all["build"] = OptionDefaults({Target(&source), Target(&build)});
+        all["evaluate"] = OptionDefaults({Target(&source), Target(&truth), Target(&eval)});
+        return all;
+      },
+      "Every keyword of PlaceDatabase() ('open'), query() ('query'), build() ('build') and "
+      "evaluate() ('evaluate', with the query options too), with its default: a dict of dicts. "
+      "They come from the library's option tables, as the command line's flags do.");
   m.def("set_log_level", &SetLogLevel, py::arg("level"),
         "The library's log level: 'trace', 'debug', 'info' (default), 'warn', 'error', "
         "'critical' or 'off'. Logs go to the process's stderr.");

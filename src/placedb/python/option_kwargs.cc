@@ -15,8 +15,19 @@ std::string TypeName(py::handle h) { return Py_TYPE(h.ptr())->tp_name; }
   throw py::type_error(fmt::format("{} must be {}, got {}", f.name, wanted, TypeName(value)));
 }
 
-bool IsInteger(py::handle v) { return !PyBool_Check(v.ptr()) && PyLong_Check(v.ptr()); }
-bool IsNumber(py::handle v) { return IsInteger(v) || PyFloat_Check(v.ptr()); }
+// Python ints and NumPy's integer scalars (anything with __index__), not
+// bools; numbers add floats and NumPy's float scalars.
+bool IsBool(py::handle v) {
+  return PyBool_Check(v.ptr()) || std::string(Py_TYPE(v.ptr())->tp_name) == "numpy.bool_";
+}
+bool IsInteger(py::handle v) {
+  return !IsBool(v) && !PyFloat_Check(v.ptr()) && PyIndex_Check(v.ptr());
+}
+bool IsNumber(py::handle v) {
+  return IsInteger(v) || (!IsBool(v) && !PyUnicode_Check(v.ptr()) && !PyBytes_Check(v.ptr()) &&
+                          PyFloat_Check(v.ptr())) ||
+         std::string(Py_TYPE(v.ptr())->tp_name).rfind("numpy.float", 0) == 0;
+}
 bool IsText(py::handle v) {
   return PyUnicode_Check(v.ptr()) || PyObject_HasAttrString(v.ptr(), "__fspath__");
 }
@@ -24,7 +35,9 @@ bool IsSequence(py::handle v) {
   return (PyList_Check(v.ptr()) || PyTuple_Check(v.ptr()));
 }
 
-OptionValue Integer(py::handle v, const OptionField& f) {
+OptionValue Integer(py::handle value, const OptionField& f) {
+  const py::object v = py::reinterpret_steal<py::object>(PyNumber_Index(value.ptr()));
+  if (!v) throw py::error_already_set();
   int overflow = 0;
   const long long i = PyLong_AsLongLongAndOverflow(v.ptr(), &overflow);
   if (overflow == 0) return static_cast<int64_t>(i);
@@ -57,7 +70,7 @@ OptionValue Sequence(py::handle v, const OptionField& f) {
   }
   if (s.size() == 0 || all_numbers) {
     std::vector<double> numbers;
-    for (const py::handle item : s) numbers.push_back(item.cast<double>());
+    for (const py::handle item : s) numbers.push_back(PyFloat_AsDouble(item.ptr()));
     return numbers;
   }
   if (all_text) {
@@ -84,8 +97,8 @@ OptionValue Sequence(py::handle v, const OptionField& f) {
 OptionValue FromPython(py::handle v, const OptionField& f) {
   switch (f.kind) {
     case OptionKind::kBool:
-      if (!PyBool_Check(v.ptr())) WrongType(f, "True or False", v);
-      return v.cast<bool>();
+      if (!IsBool(v)) WrongType(f, "True or False", v);
+      return PyObject_IsTrue(v.ptr()) == 1;
     case OptionKind::kInt:
     case OptionKind::kUint64:
       if (!IsInteger(v)) WrongType(f, "an integer", v);
@@ -93,7 +106,7 @@ OptionValue FromPython(py::handle v, const OptionField& f) {
     case OptionKind::kDouble:
       if (!IsNumber(v)) WrongType(f, "a number", v);
       if (IsInteger(v)) return Integer(v, f);
-      return v.cast<double>();
+      return PyFloat_AsDouble(v.ptr());
     case OptionKind::kText:
     case OptionKind::kChoice:
       if (v.is_none()) return std::vector<double>();  // "none", where the option has one
@@ -194,7 +207,7 @@ std::string DescribeKwargs(std::initializer_list<KwargsTarget> targets) {
              py::repr(ToPython(e.get(t.options), f)).cast<std::string>() + "\n";
       std::string help = FormatOptionNames(f.help, OptionNames::kKeywords);
       if (f.kind != OptionKind::kBool && f.kind != OptionKind::kText && f.range != "any")
-        help += " (" + f.range + ")";
+        help += " (" + FormatOptionNames(f.range, OptionNames::kKeywords) + ")";
       // Wrapped at 79 columns under an 8-space indent.
       std::string line;
       size_t begin = 0;

@@ -315,14 +315,15 @@ class PlaceDbTest(unittest.TestCase):
                        {"min_score": float("nan")}, {"ratio": 1.5}, {"search": "nope"},
                        {"search": "bow"},  # the database has no bag-of-words index
                        {"verify_model": "affine"}, {"prior_keyframe": -1},
-                       {"deadline_ms": -1.0}, {"prior_pose": ((0, 0, 0), (0, 0, 0, 0))}):
+                       {"deadline_ms": -1.0}, {"prior_pose": ((0, 0, 0), (0, 0, 0, 0))},
+                       {"prior_pose": (0, 0, 0)}):
             with self.subTest(kwargs):
                 with self.assertRaises(ValueError):
                     self.db.query(im, **kwargs)
         with self.assertRaisesRegex(ValueError, "top_k"):
             self.db.query(im, top_k=0)
         for kwargs in ({"top_k": 1.5}, {"top_k": "5"}, {"top_k": True}, {"verify": 1},
-                       {"search": 1}, {"topk": 3}, {"prior_pose": (0, 0, 0)}):
+                       {"search": 1}, {"topk": 3}, {"prior_pose": "here"}):
             with self.subTest(kwargs):
                 with self.assertRaises(TypeError):
                     self.db.query(im, **kwargs)
@@ -431,7 +432,7 @@ class PlaceDbTest(unittest.TestCase):
 
     # ---- evaluate ---------------------------------------------------------
     def test_evaluate(self):
-        rep = placedb.evaluate(self.db, images=IMAGES, truth_csv=TRUTH, num_queries=6, seed=1)
+        rep = placedb.evaluate(self.db, images=IMAGES, truth=TRUTH, queries=6, seed=1)
         for key in ("num_queries", "num_correct", "num_answerable", "recall_at_1", "recall_at_5",
                     "precision_recall", "latency_ms", "queries", "truth"):
             self.assertIn(key, rep)
@@ -452,20 +453,20 @@ class PlaceDbTest(unittest.TestCase):
             self.assertIn(q["query_id"], range(1, 85))
             self.assertEqual(set(q["result"]), set(self.db.query(self.image5).to_dict()))
         # Deterministic: the same seed picks the same queries with the same answers.
-        again = placedb.evaluate(self.db, images=IMAGES, truth_csv=TRUTH, num_queries=6, seed=1)
+        again = placedb.evaluate(self.db, images=IMAGES, truth=TRUTH, queries=6, seed=1)
         self.assertEqual([q["query_id"] for q in again["queries"]], ids)
         self.assertEqual(again["num_correct"], rep["num_correct"])
         # Query options reach the queries.
-        unverified = placedb.evaluate(self.db, images=IMAGES, truth_csv=TRUTH, num_queries=3,
+        unverified = placedb.evaluate(self.db, images=IMAGES, truth=TRUTH, queries=3,
                                       verify=False, top_k=2)
         self.assertFalse(unverified["verified"])
         self.assertTrue(all(len(q["result"]["ranked"]) <= 2 for q in unverified["queries"]))
         with self.assertRaises(ValueError):
             placedb.evaluate(self.db, images=IMAGES)  # no truth for an image folder
         with self.assertRaises(ValueError):
-            placedb.evaluate(self.db, images=IMAGES, truth_csv=TRUTH, num_queries=0)
+            placedb.evaluate(self.db, images=IMAGES, truth=TRUTH, queries=0)
         with self.assertRaises(ValueError):
-            placedb.evaluate(self.db, images=IMAGES, truth_csv=TRUTH, top_k=0)
+            placedb.evaluate(self.db, images=IMAGES, truth=TRUTH, top_k=0)
 
     def test_docstrings(self):
         self.assertIn("PlaceDatabase", placedb.__doc__)

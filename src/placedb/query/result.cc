@@ -132,6 +132,10 @@ std::string QueryResultToJson(const QueryResult& result, int indent) {
   return DumpJson(nlohmann::json(result), indent);
 }
 
+std::string RankedKeyframeToJson(const RankedKeyframe& keyframe, int indent) {
+  return DumpJson(nlohmann::json(keyframe), indent);
+}
+
 QueryResult QueryResultFromJson(const std::string& json) {
   nlohmann::json j;
   try {

@@ -150,5 +150,7 @@ QueryResult MergeQueryResults(const std::vector<QueryResult>& parts, const Query
 // ROS voter's answers are this JSON.
 std::string QueryResultToJson(const QueryResult& result, int indent = -1);
 QueryResult QueryResultFromJson(const std::string& json);
+// One ranked keyframe's JSON, as it appears in the answer's.
+std::string RankedKeyframeToJson(const RankedKeyframe& keyframe, int indent = -1);
 
 }  // namespace placedb

@@ -6,8 +6,6 @@
 #include <ros/ros.h>
 
 #include "placedb/cli/flags.h"
-#include "placedb/feature/extractor.h"
-#include "placedb/build/builder.h"
 #include "placedb/dataset/bag/image_message.h"
 #include "placedb/ros/messages.h"
 #include "placedb/ros/node_common.h"
@@ -25,11 +23,10 @@ int main(int argc, char** argv) {
     return code;
   return placedb::ros_node::RunNode("placedb_extractor", [&] {
     placedb::ros_node::PinToCpu(cpu);
-    placedb::LoadOptions table;
-    table.contents = placedb::LoadContents::kKeyframeTable;
-    const placedb::Database db = placedb::Database::Load(dir, table);
-    const auto extractor = placedb::FeatureExtractor::Create(
-        placedb::BuildOptionsFromManifest(db.info(), dir).features);
+    // The keyframe table is enough: its session has the database's extractor.
+    placedb::OpenOptions table;
+    table.keyframe_table = true;
+    const placedb::PlaceDatabase db = placedb::PlaceDatabase::Open(dir, table);
     ros::NodeHandle nh;
     image_transport::ImageTransport it(nh);
     ros::Publisher features = nh.advertise<placedb_msgs::Features>("features", 4);
@@ -37,7 +34,7 @@ int main(int argc, char** argv) {
     image_transport::Subscriber sub =
         it.subscribe("image", 1, [&](const sensor_msgs::ImageConstPtr& m) {
           try {
-            const placedb::FeatureSet f = extractor->Extract(placedb::ImageMessageToBgr(*m));
+            const placedb::FeatureSet f = db.Extract(placedb::ImageMessageToBgr(*m));
             features.publish(placedb::FeaturesToMessage(f, m->header.seq, m->header));
           } catch (const std::exception& e) {
             drops.Drop(placedb::ros_node::CauseOf(e.what()), e.what());

@@ -18,7 +18,6 @@
 #include "placedb/cli/flags.h"
 #include "placedb/dataset/bag/image_message.h"
 #include "placedb/ros/node_common.h"
-#include "placedb/util/check.h"
 
 int main(int argc, char** argv) {
   namespace cli = placedb::cli;
@@ -29,7 +28,7 @@ int main(int argc, char** argv) {
   int wait_for = 0;
   int loops = 1;
   std::string compress, frame_id = "camera", log_file;
-  source.Add(&app, "frames to publish");
+  source.Add(&app);
   app.add_option("--rate", rate,
                  "frames per second; 0: each frame when the previous one is "
                  "answered (or answer-timeout-ms passed) [0, 1000]")
@@ -53,11 +52,11 @@ int main(int argc, char** argv) {
           &argc, argv, [] { return std::string("placedb_feed"); }, app, &code))
     return code;
   return placedb::ros_node::RunNode("placedb_feed", [&] {
-    if (!(rate >= 0 && rate <= 1000)) PLACEDB_THROW_INVALID("`rate` must be in [0, 1000]");
+    if (!(rate >= 0 && rate <= 1000)) throw placedb::InvalidArgument("`rate` must be in [0, 1000]");
     if (!(answer_timeout_ms > 0 && answer_timeout_ms <= 600000))
-      PLACEDB_THROW_INVALID("`answer_timeout_ms` must be in (0, 600000]");
-    if (loops < 1 || loops > 1000000) PLACEDB_THROW_INVALID("`loops` must be in [1, 1000000]");
-    if (wait_for < 0 || wait_for > 4096) PLACEDB_THROW_INVALID("`wait_for` must be in [0, 4096]");
+      throw placedb::InvalidArgument("`answer_timeout_ms` must be in (0, 600000]");
+    if (loops < 1 || loops > 1000000) throw placedb::InvalidArgument("`loops` must be in [1, 1000000]");
+    if (wait_for < 0 || wait_for > 4096) throw placedb::InvalidArgument("`wait_for` must be in [0, 4096]");
     const std::vector<placedb::Frame> frames = source.Read();
     ros::NodeHandle nh;
     image_transport::ImageTransport it(nh);

@@ -3,7 +3,6 @@
 #include <cmath>
 #include <cstring>
 
-#include "placedb/util/check.h"
 
 namespace placedb {
 namespace {
@@ -11,7 +10,7 @@ namespace {
 // A message from the wire that is not what it should be: the sender's input.
 // The message starts with the cause, what a node's DropLog counts drops by.
 [[noreturn]] void Bad(const std::string& cause, const std::string& what) {
-  PLACEDB_THROW_INVALID(cause, ": ", what);
+  throw InvalidArgument(cause + ": " + what);
 }
 
 placedb_msgs::RankedKeyframe RankedToMessage(const RankedKeyframe& k) {
@@ -43,7 +42,7 @@ placedb_msgs::Features FeaturesToMessage(const FeatureSet& f, uint64_t frame_seq
   }
   if (!f.empty()) {
     if (!f.descriptors.isContinuous()) {
-      PLACEDB_THROW_INVALID("the descriptors must be one contiguous matrix");
+      throw InvalidArgument("the descriptors must be one contiguous matrix");
     }
     const auto* data = f.descriptors.ptr<uint8_t>();
     m.descriptors.assign(data, data + f.descriptors.total() * f.descriptors.elemSize());
@@ -159,7 +158,7 @@ QueryResult PartialFromMessage(const placedb_msgs::PartialResult& m) {
   return r;
 }
 
-placedb_msgs::Answer AnswerToMessage(const FrameAnswer& a, const Database& keyframes,
+placedb_msgs::Answer AnswerToMessage(const FrameAnswer& a, const PlaceDatabase& keyframes,
                                      const std_msgs::Header& header) {
   placedb_msgs::Answer m;
   m.header = header;
@@ -171,9 +170,9 @@ placedb_msgs::Answer AnswerToMessage(const FrameAnswer& a, const Database& keyfr
     m.score = best->score;
     m.num_matches = best->num_matches;
     m.num_inliers = best->num_inliers;
-    const int index = keyframes.IndexOfId(best->keyframe_id);
-    if (index >= 0 && keyframes.keyframe(index).pose) {
-      const Pose& p = *keyframes.keyframe(index).pose;
+    const std::optional<Keyframe> k = keyframes.FindKeyframe(best->keyframe_id);
+    if (k && k->pose) {
+      const Pose& p = *k->pose;
       m.has_pose = true;
       m.pose.position.x = p.translation.x();
       m.pose.position.y = p.translation.y();

@@ -9,11 +9,7 @@
 
 #include <string>
 
-#include "placedb/distributed/vote_collector.h"
-#include "placedb/feature/types.h"
-#include "placedb/storage/database.h"
-#include "placedb/storage/keyframe_subset.h"
-#include "placedb/query/query.h"
+#include "placedb/placedb.h"
 
 namespace placedb {
 
@@ -34,7 +30,7 @@ QueryResult PartialFromMessage(const placedb_msgs::PartialResult& message);
 
 // The voter's answer: the merged result with the answer's pose from the
 // keyframe table `keyframes` (looked up by id).
-placedb_msgs::Answer AnswerToMessage(const FrameAnswer& answer, const Database& keyframes,
+placedb_msgs::Answer AnswerToMessage(const FrameAnswer& answer, const PlaceDatabase& keyframes,
                                      const std_msgs::Header& header);
 
 }  // namespace placedb

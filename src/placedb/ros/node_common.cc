@@ -8,10 +8,10 @@
 #include <cstring>
 #include <thread>
 
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include "placedb/cli/errors.h"
-#include "placedb/util/check.h"
 
 namespace placedb {
 namespace ros_node {
@@ -39,6 +39,10 @@ bool Init(int* argc, char** argv, const std::function<std::string()>& name, CLI:
     std::fprintf(stderr, "%s: error: %s (see --help)\n", argv[0], e.what());
     *exit_code = cli::kExitInput;
     return false;
+  } catch (...) {
+    // A flag's value the option table refused (InvalidArgument naming it).
+    *exit_code = cli::ReportCurrentException(argv[0], verbose);
+    return false;
   }
   if (verbose) spdlog::set_level(spdlog::level::debug);
   ros::init(*argc, argv, name());
@@ -56,12 +60,14 @@ int RunNode(const std::string& program, const std::function<int()>& work) {
 void PinToCpu(int cpu) {
   if (cpu < 0) return;
   const long cpus = ::sysconf(_SC_NPROCESSORS_CONF);
-  if (cpu >= cpus) PLACEDB_THROW_INVALID("`cpu` ", cpu, ": this machine has CPUs 0 to ", cpus - 1);
+  if (cpu >= cpus) {
+    throw InvalidArgument(fmt::format("`cpu` {}: this machine has CPUs 0 to {}", cpu, cpus - 1));
+  }
   cpu_set_t set;
   CPU_ZERO(&set);
   CPU_SET(cpu, &set);
   if (::sched_setaffinity(0, sizeof(set), &set) != 0) {
-    PLACEDB_THROW_IO("cannot pin to CPU ", cpu, ": ", std::strerror(errno));
+    throw IoError(fmt::format("cannot pin to CPU {}: {}", cpu, std::strerror(errno)));
   }
 }
 

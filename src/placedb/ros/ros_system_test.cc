@@ -47,6 +47,7 @@
 #include "placedb/session/place_database.h"
 #include "placedb/dataset/bag/image_message.h"
 #include "placedb/ros/messages.h"
+#include "placedb/query/query.h"
 #include "placedb/ros/testbed.h"
 #include "placedb/util/file_io.h"
 #include "placedb/util/testing.h"

@@ -14,29 +14,29 @@
 #include <map>
 #include <nlohmann/json.hpp>
 
-#include "placedb/distributed/vote_collector.h"
+#include <nlohmann/json.hpp>
+
 #include "placedb/cli/flags.h"
+#include "placedb/cli/options.h"
 #include "placedb/ros/messages.h"
 #include "placedb/ros/node_common.h"
-#include "placedb/util/check.h"
-#include "placedb/util/json_reader.h"
 
 namespace placedb {
 namespace {
 
 class Voter {
  public:
-  Voter(Database keyframes, VoteOptions options, std::string scheme, std::string map_frame,
+  Voter(PlaceDatabase keyframes, VoteOptions options, std::string scheme, std::string map_frame,
         const std::string& answers_file)
       : keyframes_(std::move(keyframes)),
         collector_(options),
         scheme_(std::move(scheme)),
         map_frame_(std::move(map_frame)),
-        database_id_(keyframes_.keyframes_file()),
+        database_id_(keyframes_.generation()),
         drops_("placedb_voter") {
     if (!answers_file.empty()) {
       answers_log_.open(answers_file, std::ios::app);
-      if (!answers_log_.good()) PLACEDB_THROW_IO("cannot write ", answers_file);
+      if (!answers_log_.good()) throw IoError("cannot write " + answers_file);
     }
     answers_ = nh_.advertise<placedb_msgs::Answer>("answers", 100);
     poses_ = nh_.advertise<geometry_msgs::PoseStamped>("pose", 100);
@@ -113,15 +113,17 @@ class Voter {
         nlohmann::json j = {{"frame_seq", a.frame_seq},      {"stamp", header.stamp.toSec()},
                             {"wall_ms", ros_node::WallMs()}, {"wait_ms", a.waited_ms},
                             {"complete", a.complete()},      {"answered", a.answered},
-                            {"missing", a.missing},          {"result", a.result}};
-        answers_log_ << DumpJson(j) << "\n" << std::flush;
+                            {"missing", a.missing},
+                            {"result", nlohmann::json::parse(QueryResultToJson(a.result))}};
+        answers_log_ << j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace) << "\n"
+                     << std::flush;
       }
       // Headers of answered frames are not needed again.
       headers_.erase(headers_.begin(), headers_.upper_bound(a.frame_seq));
     }
   }
 
-  Database keyframes_;
+  PlaceDatabase keyframes_;
   VoteCollector collector_;
   std::string scheme_, map_frame_, database_id_;
   ros_node::DropLog drops_;
@@ -140,34 +142,28 @@ int main(int argc, char** argv) {
   namespace cli = placedb::cli;
   CLI::App app{"placedb_voter: merges the workers' partial results into one answer per frame"};
   std::string dir, scheme = "contiguous", map_frame = "map", answers_file;
-  cli::QueryArgs query;
   placedb::VoteOptions vote;
   app.add_option("--db", dir, "database directory (only its keyframe table is read)")->required();
-  app.add_option("--partitions", vote.num_partitions, "how many worker partitions [1, 4096]")
-      ->required();
+  // The vote's options and the query options answers rank and decide by.
+  cli::AddOptionFlags(&app, &vote);
+  app.get_option("--partitions")->required();
   app.add_option("--partition-scheme", scheme, "contiguous or interleaved, as the workers")
       ->capture_default_str()
       ->check(CLI::IsMember({"contiguous", "interleaved"}));
-  app.add_option("--deadline-ms", vote.deadline_ms,
-                 "answer a frame at the latest this long after it is first seen (0, 600000]")
-      ->capture_default_str();
-  app.add_option("--max-pending", vote.max_pending, "frames waiting at most [1, 100000]")
-      ->capture_default_str();
   app.add_option("--map-frame", map_frame, "frame_id of the published poses")
       ->capture_default_str();
   app.add_option("--answers-file", answers_file,
                  "also append every answer to this file as a JSON line");
-  query.Add(&app, /*for_queries=*/false);
   int code = 0;
   if (!placedb::ros_node::Init(
           &argc, argv, [] { return std::string("placedb_voter"); }, app, &code))
     return code;
   return placedb::ros_node::RunNode("placedb_voter", [&] {
-    vote.query = query.Get();
-    PLACEDB_CHECK_OPTIONS(vote);
-    placedb::LoadOptions table;
-    table.contents = placedb::LoadContents::kKeyframeTable;
-    placedb::Database keyframes = placedb::Database::Load(dir, table);
+    const std::string reason = vote.Check();
+    if (!reason.empty()) throw placedb::InvalidArgument("invalid vote options: " + reason);
+    placedb::OpenOptions table;
+    table.keyframe_table = true;
+    placedb::PlaceDatabase keyframes = placedb::PlaceDatabase::Open(dir, table);
     ROS_INFO("placedb_voter: %zu keyframes of %s in %d partitions (%s), deadline %.0f ms",
              keyframes.size(), dir.c_str(), vote.num_partitions, scheme.c_str(), vote.deadline_ms);
     placedb::Voter voter(std::move(keyframes), vote, scheme, map_frame, answers_file);

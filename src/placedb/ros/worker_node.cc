@@ -16,7 +16,6 @@
 #include "placedb/dataset/bag/image_message.h"
 #include "placedb/ros/messages.h"
 #include "placedb/ros/node_common.h"
-#include "placedb/util/check.h"
 
 namespace placedb {
 namespace {
@@ -138,7 +137,7 @@ int main(int argc, char** argv) {
   cli::QueryArgs query;
   std::string input = "image";
   int cpu = -1;
-  db.Add(&app, "threads matching and verifying each frame");
+  db.Add(&app);
   query.Add(&app);
   app.add_option("--input", input,
                  "what to subscribe to: image (topic image), compressed "
@@ -148,14 +147,18 @@ int main(int argc, char** argv) {
   app.add_option("--cpu", cpu, "pin the process to this CPU (-1: no pinning)")
       ->capture_default_str();
   int code = 0;
-  auto name = [&] {
-    const size_t slash = db.partition.find('/');
+  // Named after its partition (parsed by then): placedb_worker_2.
+  auto name = [&]() -> std::string {
+    const placedb::KeyframeSubset& s = db.open.subset;
     return "placedb_worker_" +
-           (slash == std::string::npos ? std::string("x") : db.partition.substr(0, slash));
+           (s.kind == placedb::KeyframeSubset::Kind::kPartition ? std::to_string(s.part)
+                                                                : std::string("x"));
   };
   if (!placedb::ros_node::Init(&argc, argv, name, app, &code)) return code;
   return placedb::ros_node::RunNode("placedb_worker", [&] {
-    if (db.partition.empty()) PLACEDB_THROW_INVALID("`partition` I/N is needed (e.g. 0/3)");
+    if (db.open.subset.kind != placedb::KeyframeSubset::Kind::kPartition) {
+      throw placedb::InvalidArgument("`partition` I/N is needed (e.g. 0/3)");
+    }
     placedb::ros_node::PinToCpu(cpu);
     if (cpu >= 0) ROS_INFO("placedb_worker: pinned to CPU %d", cpu);
     // A worker is one CPU's worth of work (the paper's node per processor):

@@ -43,6 +43,8 @@
 #include <variant>
 #include <vector>
 
+#include "placedb/util/error.h"
+
 namespace placedb {
 
 // What an option holds.
@@ -427,6 +429,7 @@ OptionField& OptionTable<T>::List(const std::string& name, std::vector<E> T::*me
   e.set = [member, name, parse](void* o, const OptionValue& v) {
     std::vector<E> items;
     for (const std::string& item : option_table_internal::ToList(v, name)) {
+      if (item.empty()) throw InvalidArgument("`" + name + "` has an empty item");
       items.push_back(parse(item));
     }
     static_cast<T*>(o)->*member = std::move(items);
