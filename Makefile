@@ -10,7 +10,7 @@ JOBS ?= $(shell nproc 2>/dev/null || echo 2)
 # The python3 on some PATHs lacks ROS's modules: CMake is given Debian's.
 CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release -DPython3_EXECUTABLE=/usr/bin/python3
 # The tests a ThreadSanitizer pass builds and runs (CTest label "threads").
-TSAN_TARGETS = util_test surf_test storage_test retrieval_test query_test build_test \
+TSAN_TARGETS = util_test surf_test storage_test retrieval_test query_test builder_test \
   session_test eval_test distributed_test
 ASAN_ENV = ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 \
   UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
@@ -18,7 +18,7 @@ TSAN_ENV = OPENCV_FOR_THREADS_NUM=1 \
   TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1:suppressions=$(CURDIR)/cmake/tsan.supp
 
 .PHONY: all deps configure build test test-release check check-asan check-tsan test-asan \
-        test-tsan demo bench clean
+        test-tsan demo bench readme-options clean
 
 all: build
 
@@ -59,6 +59,11 @@ demo: build
 
 bench: build
 	./scripts/bench.sh $(BUILD_DIR)
+
+# The README's option tables from the library's option tables (a test
+# fails while they are stale).
+readme-options: build
+	python3 scripts/option_tables.py $(BUILD_DIR)/src/placedb/exe/placedb README.md
 
 clean:
 	rm -rf $(BUILD_DIR) build-asan build-tsan out

@@ -24,7 +24,7 @@
 
 #include "placedb/dataset/image_folder.h"
 #include "placedb/eval/metrics.h"
-#include "placedb/build/builder.h"
+#include "placedb/builder/builder.h"
 #include "placedb/session/place_database.h"
 #include "placedb/ros/testbed.h"
 

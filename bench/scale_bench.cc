@@ -55,7 +55,7 @@
 
 #include "placedb/eval/augment.h"
 #include "placedb/eval/metrics.h"
-#include "placedb/build/builder.h"
+#include "placedb/builder/builder.h"
 #include "placedb/session/place_database.h"
 #include "placedb/match/hamming.h"
 #include "placedb/util/check.h"

@@ -10,13 +10,24 @@ target_link_libraries(placedb_all INTERFACE ${PLACEDB_LIBRARIES})
 set_target_properties(placedb_all PROPERTIES EXPORT_NAME placedb)
 install(TARGETS placedb_all EXPORT placedbTargets)
 
-install(DIRECTORY src/placedb DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}
-  FILES_MATCHING PATTERN "*.h"
-  PATTERN "testing.h" EXCLUDE
-  PATTERN "exe" EXCLUDE
-  PATTERN "cli" EXCLUDE)
-install(FILES ${PROJECT_BINARY_DIR}/include/placedb/util/version.h
-  DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/placedb/util)
+# The public face: placedb/placedb.h and the headers it includes, found by
+# following its #include "placedb/..." lines, and nothing else (the
+# database container, indexes, thread pools, the CLI, the ROS and Python
+# glue stay inside). scripts/check_public_headers.py checks the same closure
+# includes no other library's types than OpenCV's core and Eigen's.
+include(${CMAKE_CURRENT_LIST_DIR}/placedb_header_closure.cmake)
+placedb_header_closure(placedb_public_headers ${PROJECT_SOURCE_DIR}/src ${PROJECT_BINARY_DIR}/include)
+foreach(header ${placedb_public_headers})
+  get_filename_component(header_dir ${header} DIRECTORY)
+  if(EXISTS ${PROJECT_SOURCE_DIR}/src/${header})
+    install(FILES ${PROJECT_SOURCE_DIR}/src/${header} DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/${header_dir})
+  else()
+    # Generated (version.h).
+    install(FILES ${PROJECT_BINARY_DIR}/include/${header} DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/${header_dir})
+  endif()
+endforeach()
+list(LENGTH placedb_public_headers placedb_public_count)
+message(STATUS "placedb public headers: ${placedb_public_count} (the closure of placedb/placedb.h)")
 
 set(PLACEDB_CMAKE_DIR ${CMAKE_INSTALL_LIBDIR}/cmake/placedb)
 install(EXPORT placedbTargets NAMESPACE placedb:: DESTINATION ${PLACEDB_CMAKE_DIR})

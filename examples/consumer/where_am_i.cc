@@ -1,6 +1,6 @@
 // where_am_i DB IMAGE: which keyframe of a placedb database shows the place
 // where IMAGE was taken, and that keyframe's pose.
-#include <placedb/session/place_database.h>
+#include <placedb/placedb.h>
 
 #include <cstdio>
 #include <exception>
@@ -28,8 +28,11 @@ int main(int argc, char** argv) {
     }
     std::printf("%.1f ms, %zu keyframes examined\n", result.times.total_ms, result.num_examined);
     return 0;
-  } catch (const std::exception& e) {
+  } catch (const placedb::NotFound& e) {
     std::fprintf(stderr, "where_am_i: %s\n", e.what());
+    return 2;
+  } catch (const placedb::Error& e) {
+    std::fprintf(stderr, "where_am_i: %s (%s)\n", e.what(), placedb::ErrorKindName(e.kind()));
     return 1;
   }
 }

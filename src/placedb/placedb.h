@@ -32,7 +32,7 @@
 // no internal class (the database container, indexes, thread pools).
 #pragma once
 
-#include "placedb/build/build.h"
+#include "placedb/builder/build.h"
 #include "placedb/dataset/frame.h"
 #include "placedb/dataset/frame_source.h"
 #include "placedb/dataset/image_folder.h"

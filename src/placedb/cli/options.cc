@@ -4,6 +4,7 @@
 #include <map>
 #include <mutex>
 
+#include "placedb/placedb.h"
 #include "placedb/util/error.h"
 
 namespace placedb {
@@ -28,6 +29,12 @@ std::vector<BoundTable>& Bound() {
 std::vector<BoundTable> BoundTables() {
   std::lock_guard<std::mutex> lock(FlagsMutex());
   return Bound();
+}
+
+std::vector<const OptionTableBase*> AllOptionTables() {
+  return {&FrameSourceOptions::Table(), &BuildOptions::Table(),       &OpenOptions::Table(),
+          &QueryOptions::Table(),       &GroundTruthOptions::Table(), &EvalOptions::Table(),
+          &BenchOptions::Table(),       &ExperimentOptions::Table(),  &VoteOptions::Table()};
 }
 
 std::string FlagOf(const std::string& name) {

@@ -32,6 +32,16 @@ struct BoundTable {
 };
 std::vector<BoundTable> BoundTables();
 
+// The table of every options struct an entry point of the library takes
+// (FrameSourceOptions, BuildOptions, OpenOptions, QueryOptions, ...); every
+// other options struct is nested in one of these (OrbOptions inside
+// ExtractorOptions inside BuildOptions), and its options appear there with
+// the surfaces the nesting gives them. `placedb options --json` reports
+// these tables in full, so the tests can hold the command line and the
+// Python module to them; option_tables_test checks that every table of the
+// library is one of these or nested in one.
+std::vector<const OptionTableBase*> AllOptionTables();
+
 // The flag an option name is written as in messages: the flag a table
 // bound in this program spells for it ("--no-images" for store_images), or
 // the name with dashes.

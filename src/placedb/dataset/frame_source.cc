@@ -50,7 +50,7 @@ const OptionTable<FrameSourceOptions>& FrameSourceOptions::Table() {
     size.range = "each side in [16, 16384], W x H at most `max_image_pixels`";
     size.surfaces = kCallers;
     t.Custom(
-        size,
+        &O::frame_size, size,
         [](const O& o) -> OptionValue {
           if (o.frame_size.empty()) return std::string();
           return std::to_string(o.frame_size.width) + "x" + std::to_string(o.frame_size.height);

@@ -9,7 +9,7 @@
 #include <random>
 
 #include "placedb/dataset/image_folder.h"
-#include "placedb/build/builder.h"
+#include "placedb/builder/builder.h"
 #include "placedb/session/place_database.h"
 #include "placedb/util/testing.h"
 

@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "placedb/dataset/image_folder.h"
-#include "placedb/build/builder.h"
+#include "placedb/builder/builder.h"
 #include "placedb/session/place_database.h"
 #include "placedb/util/testing.h"
 #include "placedb/session/storage_view.h"

@@ -13,7 +13,7 @@
 #include "placedb/dataset/match_truth.h"
 #include "placedb/dataset/tum.h"
 #include "placedb/eval/baseline.h"
-#include "placedb/build/builder.h"
+#include "placedb/builder/builder.h"
 #include "placedb/session/place_database.h"
 #include "placedb/util/testing.h"
 #include "placedb/session/storage_view.h"

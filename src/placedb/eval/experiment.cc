@@ -1,6 +1,6 @@
 #include "placedb/eval/experiment.h"
 #include "placedb/eval/report_json.h"
-#include "placedb/build/builder.h"
+#include "placedb/builder/builder.h"
 #include "placedb/query/query.h"
 
 #include <fmt/format.h>

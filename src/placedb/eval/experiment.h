@@ -22,7 +22,7 @@
 #include "placedb/dataset/frame.h"
 #include "placedb/eval/evaluate.h"
 #include "placedb/eval/ground_truth.h"
-#include "placedb/build/build.h"
+#include "placedb/builder/build.h"
 #include "placedb/query/result.h"
 #include "placedb/util/option_table.h"
 

@@ -7,7 +7,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "placedb/dataset/image_folder.h"
-#include "placedb/build/builder.h"
+#include "placedb/builder/builder.h"
 #include "placedb/util/testing.h"
 
 namespace placedb {

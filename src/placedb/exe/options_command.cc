@@ -1,7 +1,12 @@
 // placedb options: every option of every command, from the option tables:
 // its flag, Python keyword, default, range and help. --markdown writes the
-// README's table of options (scripts/option_tables.py keeps it current).
+// README's table of options (scripts/option_tables.py keeps it current);
+// --json every option of every table of the library with where it appears
+// (the tests hold the command line and the Python module to it).
 #include <fmt/format.h>
+
+#include <iostream>
+#include <nlohmann/json.hpp>
 
 #include <map>
 #include <set>
@@ -9,6 +14,7 @@
 #include "placedb/cli/flags.h"
 #include "placedb/cli/options.h"
 #include "placedb/exe/command.h"
+#include "placedb/util/json_reader.h"
 
 namespace placedb {
 namespace cli {
@@ -30,10 +36,18 @@ class OptionsCommand : public Command {
     auto* cmd = app.add_subcommand(
         "options", "every option of every command: flag, Python keyword, default, range, help");
     cmd->add_flag("--markdown", markdown_, "as Markdown tables (the README's)");
+    cmd->add_flag("--json", json_,
+                  "every option of every table of the library as JSON, with the commands "
+                  "whose flags set it");
     return cmd;
   }
 
   int Run() override {
+    if (markdown_ && json_) throw InvalidArgument("`markdown` and `json` exclude each other");
+    if (json_) {
+      PrintJson();
+      return 0;
+    }
     // Each table once, with the commands that take it and the options any
     // of them shows.
     struct Use {
@@ -89,7 +103,48 @@ class OptionsCommand : public Command {
   }
 
  private:
+  // {"tables": [{"table", "commands", "options": [{"name", "flag", "kind",
+  // "default", "range", "help", "command_line", "python", "manifest",
+  // "shown_by"}]}]}: "shown_by" lists the commands with a flag for the
+  // option (through any table they bound, nested ones included).
+  static void PrintJson() {
+    std::map<std::string, std::set<std::string>> shown_by;
+    std::map<const OptionTableBase*, std::set<std::string>> commands;
+    for (const BoundTable& b : BoundTables()) {
+      if (b.command == "options") continue;
+      commands[b.table].insert(b.command);
+      for (const auto& e : b.table->entries()) {
+        if ((e.field.surfaces & kCommandLine) &&
+            std::find(b.skip.begin(), b.skip.end(), e.field.name) == b.skip.end())
+          shown_by[e.field.name].insert(b.command);
+      }
+    }
+    nlohmann::json tables = nlohmann::json::array();
+    for (const OptionTableBase* table : AllOptionTables()) {
+      nlohmann::json options = nlohmann::json::array();
+      for (const auto& e : table->entries()) {
+        const OptionField& f = e.field;
+        const auto shown = shown_by.find(f.name);
+        options.push_back({{"name", f.name},
+                           {"flag", FlagName(f)},
+                           {"kind", OptionKindName(f.kind)},
+                           {"default", f.default_text},
+                           {"range", f.range},
+                           {"help", f.help},
+                           {"command_line", (f.surfaces & kCommandLine) != 0},
+                           {"python", (f.surfaces & kPython) != 0},
+                           {"manifest", (f.surfaces & kManifest) != 0},
+                           {"shown_by", shown == shown_by.end() ? std::set<std::string>()
+                                                                : shown->second}});
+      }
+      tables.push_back(
+          {{"table", table->what()}, {"commands", commands[table]}, {"options", options}});
+    }
+    std::cout << DumpJson({{"tables", tables}}, 2) << "\n";
+  }
+
   bool markdown_ = false;
+  bool json_ = false;
 };
 
 }  // namespace

@@ -6,18 +6,20 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <iterator>
+#include <map>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <string>
 #include <vector>
 
-#include "placedb/build/builder.h"
+#include "placedb/builder/builder.h"
 #include "placedb/storage/database.h"
 #include "placedb/storage/keyframe_file.h"
 #include "placedb/query/query.h"
@@ -125,6 +127,68 @@ TEST_F(CliTest, HelpListsEverySubcommandAndOption) {
   EXPECT_TRUE(Contains(build_help.output, "85")) << build_help.output;
   const CommandResult none = Placedb("");
   EXPECT_NE(none.code, 0);
+}
+
+// Whether `help` shows `flag` whole (not only as the start of a longer one).
+bool HasFlag(const std::string& help, const std::string& flag) {
+  for (size_t at = help.find(flag); at != std::string::npos; at = help.find(flag, at + 1)) {
+    const size_t end = at + flag.size();
+    if (end == help.size() || !(std::isalnum(static_cast<unsigned char>(help[end])) || help[end] == '-'))
+      return true;
+  }
+  return false;
+}
+
+// The command line against the library's option tables: every option a
+// table shows on the command line is a flag of some command (its --help
+// lists it), and `placedb options --json` reports every table, nested ones
+// too. An options struct whose table no command binds, or an option every
+// command skips, fails here.
+TEST_F(CliTest, EveryCommandLineOptionOfEveryTableIsAFlag) {
+  const CommandResult r = Placedb("options --json");
+  ASSERT_EQ(r.code, 0) << r.output;
+  const nlohmann::json j = nlohmann::json::parse(r.output);
+  std::map<std::string, std::string> help;  // command -> its --help
+  int options = 0;
+  ASSERT_GE(j.at("tables").size(), 9u);
+  for (const nlohmann::json& table : j.at("tables")) {
+    const std::string what = table.at("table");
+    EXPECT_FALSE(table.at("options").empty()) << what;
+    // The voting node's options are the ROS voter's flags, not placedb's.
+    const bool voter = what == "vote options";
+    EXPECT_EQ(table.at("commands").empty(), voter) << what;
+#ifdef PLACEDB_VOTER
+    if (voter && help.count("voter") == 0) {
+      FILE* pipe = popen(PLACEDB_VOTER " --help 2>&1", "r");
+      ASSERT_NE(pipe, nullptr);
+      char buf[4096];
+      for (size_t n; (n = fread(buf, 1, sizeof(buf), pipe)) > 0;) help["voter"].append(buf, n);
+      EXPECT_EQ(pclose(pipe), 0) << help["voter"];
+    }
+#endif
+    for (const nlohmann::json& o : table.at("options")) {
+      if (!o.at("command_line").get<bool>()) continue;
+      ++options;
+      const std::string flag = o.at("flag");
+      if (voter) {
+#ifdef PLACEDB_VOTER
+        EXPECT_TRUE(HasFlag(help["voter"], flag)) << "placedb_voter --help lacks " << flag;
+#endif
+        continue;
+      }
+      EXPECT_FALSE(o.at("shown_by").empty()) << what << ": " << flag << " is no command's flag";
+      for (const std::string command : o.at("shown_by")) {
+        if (help.count(command) == 0) help[command] = Placedb(command + " --help").output;
+        EXPECT_TRUE(HasFlag(help[command], flag)) << command << " --help lacks " << flag;
+      }
+    }
+  }
+  EXPECT_GT(options, 80);
+  // --markdown and --json exclude each other: one line, exit 1.
+  const CommandResult both = PlacedbStderr("options --json --markdown");
+  EXPECT_EQ(both.code, 1);
+  EXPECT_TRUE(Contains(both.output, "error: --markdown and --json exclude each other"))
+      << both.output;
 }
 
 TEST_F(CliTest, BuildQueryEvalInfo) {

@@ -319,6 +319,61 @@ py::dict EvaluateDatabase(const PlaceDatabase& db, const py::kwargs& kwargs) {
   return FromJsonText(EvalReportJson(report)).cast<py::dict>();
 }
 
+// The database's frames default to the query source's, all of them
+// (first=1, last=0); `database` (a dict of frame-source keywords) changes
+// them, as --db-images/--db-tum/--db-first/--db-last do.
+py::dict RunExperimentInto(const fs::path& out, const py::object& database, bool report,
+                           const py::kwargs& kwargs) {
+  FrameSourceOptions source;
+  GroundTruthOptions truth_options;
+  ExperimentOptions options;
+  options.progress = false;
+  ApplyKwargs(kwargs, {Target(&source), Target(&truth_options), Target(&options)}, "experiment");
+  FrameSourceOptions db_source = source;
+  db_source.first = 1;
+  db_source.last = 0;
+  if (!database.is_none()) {
+    if (!py::isinstance<py::dict>(database))
+      throw InvalidArgument("`database` takes a dict of frame-source keywords (images, tum, first, "
+                            "last, ...)");
+    py::kwargs db_kwargs;
+    for (const auto& item : database.cast<py::dict>()) db_kwargs[item.first] = item.second;
+    // A folder given for the database replaces the query source's.
+    if (db_kwargs.contains("images") || db_kwargs.contains("tum")) {
+      db_source.images.clear();
+      db_source.tum.clear();
+    }
+    ApplyKwargs(db_kwargs, {Target(&db_source)}, "experiment(database=...)");
+  }
+  CheckOptions(source);
+  CheckOptions(db_source);
+  CheckOptions(truth_options);
+  CheckOptions(options);
+  const std::string out_dir = out.string();
+  ExperimentSummary summary;
+  std::string report_path;
+  ExperimentData data;
+  {
+    py::gil_scoped_release release;
+    data.queries = ReadFrames(source);
+    data.queries_from = DescribeFrameSource(source);
+    data.database = ReadFrames(db_source);
+    data.database_from = DescribeFrameSource(db_source);
+    const GroundTruth truth = MakeGroundTruth(truth_options, source);
+    summary = RunExperiment(data, truth, options, out_dir);
+    if (report) report_path = WriteExperimentReport(out_dir);
+  }
+  py::dict d;
+  d["num_settings"] = summary.num_settings;
+  d["num_reused"] = summary.num_reused;
+  d["num_queries"] = summary.num_queries;
+  d["num_database_frames"] = data.database.size();
+  d["pictures"] = summary.pictures;
+  d["results"] = summary.results;
+  d["report"] = report ? py::object(py::str(report_path)) : py::object(py::none());
+  return d;
+}
+
 py::array ReadImage(const fs::path& path, int64_t max_image_pixels) {
   Frame frame;
   frame.image_path = path.string();
@@ -439,6 +494,26 @@ min_score, at_threshold, curve}}, latency_ms and stage_ms {{mean, p50, p99,
 max}}, searches, mean_coverage, num_deadline_reached, database_bytes,
 full_frames_png_bytes, reduction_vs_full, truth, and queries (each with its
 full QueryResult dict).
+)doc";
+
+constexpr const char* kExperimentDoc =
+    R"doc(The paper's experiments (placedb experiment): builds and evaluates every
+feature x crop x resize x verification setting of the grid into the folder
+`out` (resumed when it holds this experiment: finished settings are kept),
+writes results.json and, with report=True, report.html.
+
+Query frames and ground truth as for evaluate(); the database's frames are
+the query source's, all of them, unless database= (a dict of frame-source
+keywords: images or tum, first, last, frame_size, ...) says otherwise, e.g.
+database={{"first": 1, "last": 40}}. Returns a dict: num_settings,
+num_reused, num_queries, num_database_frames, pictures (paths in the
+folder), results (results.json) and report (report.html, or None).
+
+Keywords (the frame source, the ground truth, the experiment's grid and
+every build, query and evaluation option it applies to each setting; see
+option_defaults()['experiment']):
+
+{}
 )doc";
 
 }  // namespace
@@ -717,6 +792,15 @@ PYBIND11_MODULE(placedb, m) {
       DescribeKwargs({Target(&source_defaults), Target(&truth_defaults), Target(&eval_defaults)}));
   m.def("evaluate", &EvaluateDatabase, py::arg("db"), evaluate_doc.c_str());
 
+  ExperimentOptions experiment_defaults;
+  experiment_defaults.progress = false;
+  const std::string experiment_doc = fmt::format(
+      fmt::runtime(kExperimentDoc), DescribeKwargs({Target(&source_defaults),
+                                                    Target(&truth_defaults),
+                                                    Target(&experiment_defaults)}));
+  m.def("experiment", &RunExperimentInto, py::arg("out"), py::kw_only(),
+        py::arg("database") = py::none(), py::arg("report") = true, experiment_doc.c_str());
+
   m.def("read_image", &ReadImage, py::arg("path"), py::kw_only(),
         py::arg("max_image_pixels") = kDefaultMaxImagePixels,
         "Reads an image file as an HxWx3 uint8 BGR array (decoded by OpenCV, as build and "
@@ -754,10 +838,15 @@ PYBIND11_MODULE(placedb, m) {
         all["query"] = OptionDefaults({Target(&query)});
         all["build"] = OptionDefaults({Target(&source), Target(&build)});
         all["evaluate"] = OptionDefaults({Target(&source), Target(&truth), Target(&eval)});
+        ExperimentOptions experiment;
+        experiment.progress = false;
+        all["experiment"] =
+            OptionDefaults({Target(&source), Target(&truth), Target(&experiment)});
         return all;
       },
-      "Every keyword of PlaceDatabase() ('open'), query() ('query'), build() ('build') and "
-      "evaluate() ('evaluate', with the query options too), with its default: a dict of dicts. "
+      "Every keyword of PlaceDatabase() ('open'), query() ('query'), build() ('build'), "
+      "evaluate() ('evaluate', with the query options too) and experiment() ('experiment'), "
+      "with its default: a dict of dicts. "
       "They come from the library's option tables, as the command line's flags do.");
   m.def("set_log_level", &SetLogLevel, py::arg("level"),
         "The library's log level: 'trace', 'debug', 'info' (default), 'warn', 'error', "

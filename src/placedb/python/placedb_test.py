@@ -9,6 +9,7 @@ PLACEDB_DATA_DIR=<repo>/data, or by hand:
 import json
 import os
 import shutil
+import subprocess
 import tempfile
 import threading
 import unittest
@@ -468,12 +469,65 @@ class PlaceDbTest(unittest.TestCase):
         with self.assertRaises(ValueError):
             placedb.evaluate(self.db, images=IMAGES, truth=TRUTH, top_k=0)
 
+    # ---- experiment -------------------------------------------------------
+    def test_experiment(self):
+        out = os.path.join(self.tmp, "experiment")
+        kwargs = dict(images=IMAGES, first=41, last=84, truth=TRUTH, features=["orb"],
+                      crop=["none", "chroma"], resize=[4], verification=["on"], queries=4,
+                      pictures=1, failures=0)
+        s = placedb.experiment(out, database={"first": 1, "last": 40}, report=False, **kwargs)
+        self.assertEqual(s["num_settings"], 2)
+        self.assertEqual(s["num_reused"], 0)
+        self.assertEqual(s["num_queries"], 4)
+        self.assertEqual(s["num_database_frames"], 40)
+        self.assertIsNone(s["report"])
+        with open(s["results"]) as f:
+            results = json.load(f)
+        self.assertEqual(len(results["settings"]), 2)
+        # Resumed: both settings are kept.
+        again = placedb.experiment(out, database={"first": 1, "last": 40}, report=False, **kwargs)
+        self.assertEqual(again["num_reused"], 2)
+        with self.assertRaises(TypeError):
+            placedb.experiment(out, database={"no_such_keyword": 1}, **kwargs)
+        with self.assertRaises(ValueError):
+            placedb.experiment(out, database=3, **kwargs)
+        with self.assertRaises(ValueError):
+            placedb.experiment(out, **dict(kwargs, resize=[3]))
+
     def test_docstrings(self):
         self.assertIn("PlaceDatabase", placedb.__doc__)
         self.assertIn("top_k", placedb.PlaceDatabase.query.__doc__)
         self.assertIn("resize", placedb.build.__doc__)
         self.assertIn("recall_at_1", placedb.evaluate.__doc__)
+        self.assertIn("verification", placedb.experiment.__doc__)
         self.assertTrue(placedb.__version__)
+
+    @unittest.skipUnless(os.environ.get("PLACEDB_BINARY"), "needs PLACEDB_BINARY (the CLI)")
+    def test_every_python_option_of_every_table_is_a_keyword(self):
+        """The module against the library's option tables, as `placedb options
+        --json` reports them all: every option a table gives Python is a
+        keyword of some function (option_defaults() lists each function's),
+        with the table's default, and its docstring describes it."""
+        out = subprocess.run([os.environ["PLACEDB_BINARY"], "options", "--json"], check=True,
+                             capture_output=True, text=True).stdout
+        tables = json.loads(out)["tables"]
+        self.assertGreaterEqual(len(tables), 9)
+        keywords = placedb.option_defaults()
+        docs = {"open": placedb.PlaceDatabase.__init__.__doc__,
+                "query": placedb.PlaceDatabase.query.__doc__,
+                "build": placedb.build.__doc__, "evaluate": placedb.evaluate.__doc__,
+                "experiment": placedb.experiment.__doc__}
+        count = 0
+        for table in tables:
+            for o in table["options"]:
+                if not o["python"]:
+                    continue
+                count += 1
+                where = [f for f, kw in keywords.items() if o["name"] in kw]
+                self.assertTrue(where, f"{table['table']}: {o['name']} is no Python keyword")
+                for f in where:
+                    self.assertIn(o["name"], docs[f], f"{f}'s docstring lacks {o['name']}")
+        self.assertGreater(count, 80)
 
 
 if __name__ == "__main__":

@@ -24,7 +24,7 @@ const OptionTable<QueryPrior>& QueryPrior::Table() {
         "quaternion is normalised); none by default (`prior_keyframe` wins when both are set)";
     pose.range = "7 finite numbers, a quaternion that is not zero";
     t.Custom(
-        pose,
+        &O::pose, pose,
         [](const O& o) -> OptionValue {
           if (!o.pose) return std::vector<double>();
           const Eigen::Vector3d& p = o.pose->translation;

@@ -16,7 +16,7 @@
 #include <sstream>
 
 #include "placedb/dataset/image_folder.h"
-#include "placedb/build/builder.h"
+#include "placedb/builder/builder.h"
 #include "placedb/query/ranking.h"
 #include "placedb/util/testing.h"
 #include "placedb/util/thread_pool.h"

@@ -43,7 +43,7 @@
 #include <thread>
 
 #include "placedb/dataset/image_folder.h"
-#include "placedb/build/builder.h"
+#include "placedb/builder/builder.h"
 #include "placedb/session/place_database.h"
 #include "placedb/dataset/bag/image_message.h"
 #include "placedb/ros/messages.h"

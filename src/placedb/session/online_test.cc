@@ -16,7 +16,7 @@
 #include <thread>
 
 #include "placedb/dataset/image_folder.h"
-#include "placedb/build/builder.h"
+#include "placedb/builder/builder.h"
 #include "placedb/query/query.h"
 #include "placedb/session/place_database.h"
 #include "placedb/util/testing.h"

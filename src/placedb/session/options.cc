@@ -90,7 +90,7 @@ const OptionTable<OpenOptions>& OpenOptions::Table() {
     partition.range = "I/N with N in [1, 4096], I in [0, N)";
     partition.surfaces = kCallers;
     t.Custom(
-        partition,
+        &O::subset, partition,
         [](const O& o) -> OptionValue {
           if (o.subset.kind != KeyframeSubset::Kind::kPartition) return std::string();
           return std::to_string(o.subset.part) + "/" + std::to_string(o.subset.num_parts);
@@ -110,7 +110,7 @@ const OptionTable<OpenOptions>& OpenOptions::Table() {
     scheme.range = "contiguous or interleaved";
     scheme.surfaces = kCallers;
     t.Custom(
-        scheme,
+        &O::subset, scheme,
         [](const O& o) -> OptionValue { return std::string(PartitionSchemeName(o.subset.scheme)); },
         [](O& o, const OptionValue& v) {
           o.subset.scheme = ParsePartitionScheme(oi::ToString(v, "partition_scheme"));
@@ -123,7 +123,7 @@ const OptionTable<OpenOptions>& OpenOptions::Table() {
     keyframes.range = "ids present in the database";
     keyframes.surfaces = kCallers;
     t.Custom(
-        keyframes,
+        &O::subset, keyframes,
         [](const O& o) -> OptionValue {
           std::vector<std::string> ids;
           if (o.subset.kind == KeyframeSubset::Kind::kIds) {
@@ -147,7 +147,7 @@ const OptionTable<OpenOptions>& OpenOptions::Table() {
     features.range = "orb or surf";
     features.surfaces = kCallers;
     t.Custom(
-        features,
+        &O::expected_features, features,
         [](const O& o) -> OptionValue {
           return std::string(o.expected_features ? FeatureTypeName(*o.expected_features) : "");
         },

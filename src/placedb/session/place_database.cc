@@ -1,6 +1,6 @@
 #include "placedb/session/place_database.h"
 
-#include "placedb/build/builder.h"
+#include "placedb/builder/builder.h"
 #include "placedb/feature/extractor.h"
 #include "placedb/query/query.h"
 #include "placedb/session/storage_view.h"

@@ -34,7 +34,7 @@
 #include <string>
 #include <vector>
 
-#include "placedb/build/build.h"
+#include "placedb/builder/build.h"
 #include "placedb/dataset/frame.h"
 #include "placedb/feature/options.h"
 #include "placedb/query/result.h"

@@ -1,6 +1,6 @@
 // The session API as a client uses it: open a built database from disk and
 // ask where images were taken.
-#include "placedb/build/builder.h"
+#include "placedb/builder/builder.h"
 #include "placedb/query/query.h"
 #include "placedb/session/place_database.h"
 

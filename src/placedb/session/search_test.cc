@@ -13,7 +13,7 @@
 #include "placedb/dataset/image_folder.h"
 #include "placedb/dataset/match_truth.h"
 #include "placedb/retrieval/clusters.h"
-#include "placedb/build/builder.h"
+#include "placedb/builder/builder.h"
 #include "placedb/query/query.h"
 #include "placedb/session/place_database.h"
 #include "placedb/util/testing.h"

@@ -327,6 +327,28 @@ std::string OptionTableBase::CheckAll(const void* options) const {
   return CheckRules(options);
 }
 
+std::string OptionTableBase::CheckLayout() const {
+  std::vector<Placed> placed = layout_;
+  std::sort(placed.begin(), placed.end(),
+            [](const Placed& a, const Placed& b) { return a.offset < b.offset; });
+  auto round_up = [](size_t n, size_t align) { return (n + align - 1) / align * align; };
+  size_t end = 0;
+  for (const Placed& p : placed) {
+    if (p.offset > round_up(end, p.align)) {
+      return fmt::format("{}: bytes [{}, {}) of the struct are no option's member (a member "
+                         "missing from the table?)",
+                         what_, end, p.offset);
+    }
+    end = std::max(end, p.offset + p.bytes);
+  }
+  if (round_up(end, struct_align_) != struct_bytes_) {
+    return fmt::format("{}: the options' members end at byte {} of a {}-byte struct (a member "
+                       "missing from the table?)",
+                       what_, end, struct_bytes_);
+  }
+  return "";
+}
+
 std::string OptionTableBase::CheckRules(const void* options) const {
   for (const auto& rule : rules_) {
     std::string reason = rule(options);

@@ -96,6 +96,13 @@ class OptionRange {
   static OptionRange OneOf(std::vector<int64_t> values);
 
   bool any() const { return !interval_ && one_of_.empty(); }
+  // An interval's bounds (interval() false: any value, or OneOf).
+  bool interval() const { return interval_; }
+  double lo() const { return lo_; }
+  double hi() const { return hi_; }
+  bool lo_open() const { return lo_open_; }
+  bool hi_open() const { return hi_open_; }
+  const std::vector<int64_t>& one_of() const { return one_of_; }
   // Whether `v` is in it (NaN never is).
   bool Contains(double v) const;
   // "[1, 10000]", "(0, 1]", "[0, 2^31)", "1, 4 or 16", "any".
@@ -120,6 +127,7 @@ struct OptionField {
   OptionKind kind = OptionKind::kInt;
   std::string help;     // one line
   std::string range;    // the range's text, or the choices: "orb or surf"
+  OptionRange bounds = OptionRange::Any();  // a number's range
   std::string default_text;  // the struct's default, as text
   std::vector<std::string> choices;  // kChoice, kList of names: the names
   unsigned surfaces = kEverywhere;
@@ -143,7 +151,8 @@ class OptionTableBase {
     std::function<std::string(const void*)> check;
   };
 
-  explicit OptionTableBase(std::string what) : what_(std::move(what)) {}
+  OptionTableBase(std::string what, size_t struct_bytes, size_t struct_align)
+      : what_(std::move(what)), struct_bytes_(struct_bytes), struct_align_(struct_align) {}
   // "query options", "build settings": what messages call the struct.
   const char* what() const { return what_.c_str(); }
   const std::vector<Entry>& entries() const { return entries_; }
@@ -163,11 +172,24 @@ class OptionTableBase {
   std::string CheckAll(const void* options) const;
   // The rules between options alone (nested structs' included).
   std::string CheckRules(const void* options) const;
+  // Whether the table describes every member of its struct: the members
+  // its options set, laid out by offset, must fill the struct but for the
+  // padding the members' alignment makes ("" when they do, else where the
+  // gap is). A member added to the struct and forgotten in the table leaves
+  // a gap. (A nested struct counts whole; its own table checks inside it.)
+  std::string CheckLayout() const;
 
  protected:
   void AddEntry(Entry entry);
+  // Bytes [offset, offset + bytes) of the struct are an option's member.
+  struct Placed {
+    size_t offset, bytes, align;
+  };
+  void Place(Placed placed) { layout_.push_back(placed); }
   void AddRule(std::function<std::string(const void*)> rule) { rules_.push_back(std::move(rule)); }
   std::string what_;
+  size_t struct_bytes_, struct_align_;
+  std::vector<Placed> layout_;
   std::vector<Entry> entries_;
   std::vector<std::function<std::string(const void*)>> rules_;
 };
@@ -200,7 +222,8 @@ std::string FormatValue(double v);
 template <typename T>
 class OptionTable : public OptionTableBase {
  public:
-  explicit OptionTable(std::string what) : OptionTableBase(std::move(what)) {}
+  explicit OptionTable(std::string what)
+      : OptionTableBase(std::move(what), sizeof(T), alignof(T)) {}
 
   // A bool, whole or real number member.
   template <typename M>
@@ -229,6 +252,15 @@ class OptionTable : public OptionTableBase {
   OptionField& Custom(OptionField field, std::function<OptionValue(const T&)> get,
                       std::function<void(T&, const OptionValue&)> set,
                       std::function<std::string(const T&)> check = nullptr);
+  // The same for an option that is member `member` (or part of it: several
+  // options may set one member, a subset).
+  template <typename M>
+  OptionField& Custom(M T::*member, OptionField field, std::function<OptionValue(const T&)> get,
+                      std::function<void(T&, const OptionValue&)> set,
+                      std::function<std::string(const T&)> check = nullptr) {
+    PlaceMember(member);
+    return Custom(std::move(field), std::move(get), std::move(set), std::move(check));
+  }
   // The options of a nested struct, member `member` of T (its members are
   // named "<member_name>.<theirs>"), on the surfaces of `surfaces` only,
   // without the options named in `skip` (still checked, as the nested
@@ -257,6 +289,13 @@ class OptionTable : public OptionTableBase {
 
  private:
   OptionField& Added() { return entries_.back().field; }
+  template <typename M>
+  void PlaceMember(M T::*member) {
+    const T& d = Defaults();
+    const size_t offset = static_cast<size_t>(reinterpret_cast<const char*>(&(d.*member)) -
+                                              reinterpret_cast<const char*>(&d));
+    Place({offset, sizeof(M), alignof(M)});
+  }
   static const T& Defaults() {
     static const T defaults{};
     return defaults;
@@ -273,11 +312,13 @@ OptionField& OptionTable<T>::Number(const std::string& name, M T::*member, const
   namespace oi = option_table_internal;
   static_assert(std::is_arithmetic<M>::value && !std::is_same<M, bool>::value,
                 "Number: an int, int64_t, uint64_t or double member");
+  PlaceMember(member);
   Entry e;
   e.field.name = name;
   e.field.member = member_name;
   e.field.help = help;
   e.field.range = range.Text();
+  e.field.bounds = range;
   e.field.surfaces = surfaces;
   if constexpr (std::is_floating_point<M>::value) {
     e.field.kind = OptionKind::kDouble;
@@ -330,6 +371,7 @@ template <typename T>
 OptionField& OptionTable<T>::Bool(const std::string& name, bool T::*member,
                                   const char* member_name, const std::string& help, BoolFlag flag,
                                   unsigned surfaces) {
+  PlaceMember(member);
   Entry e;
   e.field.name = name;
   e.field.member = member_name;
@@ -352,6 +394,7 @@ template <typename T>
 OptionField& OptionTable<T>::String(const std::string& name, std::string T::*member,
                                   const char* member_name, const std::string& help,
                                   unsigned surfaces) {
+  PlaceMember(member);
   Entry e;
   e.field.name = name;
   e.field.member = member_name;
@@ -374,6 +417,7 @@ template <typename E, typename Parse, typename Name>
 OptionField& OptionTable<T>::Choice(const std::string& name, E T::*member, const char* member_name,
                                     std::vector<E> values, Parse parse, Name to_name,
                                     const std::string& help, unsigned surfaces) {
+  PlaceMember(member);
   Entry e;
   e.field.name = name;
   e.field.member = member_name;
@@ -409,6 +453,7 @@ template <typename E, typename Parse, typename Name>
 OptionField& OptionTable<T>::List(const std::string& name, std::vector<E> T::*member,
                                   const char* member_name, std::vector<E> values, Parse parse,
                                   Name to_name, const std::string& help, unsigned surfaces) {
+  PlaceMember(member);
   Entry e;
   e.field.name = name;
   e.field.member = member_name;
@@ -481,6 +526,7 @@ template <typename T>
 template <typename S>
 void OptionTable<T>::Nest(S T::*member, const char* member_name, const OptionTable<S>& table,
                           unsigned surfaces, std::vector<std::string> skip) {
+  PlaceMember(member);
   for (const Entry& inner : table.entries()) {
     if (std::find(skip.begin(), skip.end(), inner.field.name) != skip.end()) continue;
     Entry e;

@@ -1,4 +1,4 @@
-#include "placedb/build/builder.h"
+#include "placedb/builder/builder.h"
 
 #include <fcntl.h>
 #include <signal.h>

@@ -1,6 +1,6 @@
 // Building a database from frames: the settings (crop, resize, features,
 // the retrieval index), the report, and BuildDatabase (part of the public
-// face, placedb/placedb.h; the steps are build/builder.h).
+// face, placedb/placedb.h; the steps are builder/builder.h).
 #pragma once
 
 #include <cstddef>

@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "placedb/build/build.h"
+#include "placedb/builder/build.h"
 #include "placedb/dataset/frame.h"
 #include "placedb/feature/extractor.h"
 #include "placedb/image/feature_rich_crop.h"

@@ -1,7 +1,7 @@
 // The option table of a build, and the build settings a manifest keeps
 // (util/option_table.h, util/option_json.h).
-#include "placedb/build/build.h"
-#include "placedb/build/builder.h"
+#include "placedb/builder/build.h"
+#include "placedb/builder/builder.h"
 #include "placedb/util/check.h"
 #include "placedb/util/json_reader.h"
 #include "placedb/util/option_json.h"

@@ -1,4 +1,4 @@
-#include "placedb/build/builder.h"
+#include "placedb/builder/builder.h"
 
 #include <gtest/gtest.h>
 #include <signal.h>
