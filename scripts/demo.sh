@@ -104,7 +104,7 @@ r = db.query(image, top_k=3)
 print(r)
 print("ranked:", [(k.keyframe_id, k.num_inliers) for k in r.ranked])
 e = placedb.evaluate(db, images=sys.argv[2] + "/images", first=41,
-                     truth_csv=sys.argv[2] + "/ground_truth.csv", all=True)
+                     truth=sys.argv[2] + "/ground_truth.csv", all=True)
 print(f"evaluate: {e['num_correct']} of {e['num_queries']} correct, recall@1 {e['recall_at_1']:.3f}")
 PY
 
