@@ -37,6 +37,16 @@ FLOOR = {folder: i for i, floor in enumerate(LAYERS) for folder in floor}
 NOT_LIBRARIES = ("util/testing.h", "ros/testbed.h", "ros/testbed.cc")
 
 
+def includes(path):
+    """(line number, included path) of every #include of a file, <...> or
+    "..." (check_public_headers.py reads files the same way)."""
+    with open(path, encoding="utf-8") as f:
+        for n, line in enumerate(f, 1):
+            m = re.match(r'\s*#\s*include\s*[<"]([^>"]+)[>"]', line)
+            if m:
+                yield n, m.group(1)
+
+
 def folder_of(path):
     d = os.path.dirname(path)
     return d if d else "."
@@ -58,11 +68,10 @@ def main():
                 bad.append(f"{rel}: its folder {here}/ is not in the layer list")
                 continue
             checked += 1
-            for n, line in enumerate(open(os.path.join(dirpath, name), encoding="utf-8"), 1):
-                m = re.match(r'\s*#\s*include\s*["<]placedb/([^">]+)[">]', line)
-                if not m:
+            for n, included in includes(os.path.join(dirpath, name)):
+                if not included.startswith("placedb/"):
                     continue
-                target = m.group(1)
+                target = included[len("placedb/"):]
                 there = folder_of(target)
                 if target == "util/version.h" or there == here:
                     continue  # generated into util/; the same library

@@ -12,6 +12,9 @@ import os
 import re
 import sys
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from check_layers import includes  # noqa: E402  (one reading of #include lines)
+
 ALLOWED = re.compile(r"^(opencv2/core\.hpp|opencv2/core/types\.hpp|Eigen/(Core|Geometry)|"
                      r"[a-z_]+)$")  # the standard library's headers have no slash or dot
 # Internal headers that must never be reached from the face.
@@ -33,11 +36,7 @@ def main():
         path = os.path.join(root, header)
         if not os.path.exists(path):
             path = os.path.join(generated, header)
-        for n, line in enumerate(open(path, encoding="utf-8"), 1):
-            m = re.match(r'\s*#\s*include\s*[<"]([^>"]+)[>"]', line)
-            if not m:
-                continue
-            included = m.group(1)
+        for n, included in includes(path):
             if included.startswith("placedb/"):
                 todo.append(included)
             elif not ALLOWED.match(included):

@@ -90,6 +90,11 @@ std::string HelpOf(const OptionField& f) {
 
 }  // namespace
 
+bool IsFlag(const OptionField& field, const std::vector<std::string>& skip) {
+  return (field.surfaces & kCommandLine) != 0 &&
+         std::find(skip.begin(), skip.end(), field.name) == skip.end();
+}
+
 void AddOptionFlags(CLI::App* cmd, const OptionTableBase& table, void* options,
                     const std::vector<std::string>& skip) {
   {
@@ -98,8 +103,7 @@ void AddOptionFlags(CLI::App* cmd, const OptionTableBase& table, void* options,
   }
   for (const OptionTableBase::Entry& entry : table.entries()) {
     const OptionField& f = entry.field;
-    if ((f.surfaces & kCommandLine) == 0) continue;
-    if (std::find(skip.begin(), skip.end(), f.name) != skip.end()) continue;
+    if (!IsFlag(f, skip)) continue;
     {
       std::lock_guard<std::mutex> lock(FlagsMutex());
       BoundFlags()[f.name] = FlagName(f);

@@ -23,6 +23,11 @@ void AddOptionFlags(CLI::App* cmd, T* options, const std::vector<std::string>& s
   AddOptionFlags(cmd, T::Table(), options, skip);
 }
 
+// Whether AddOptionFlags makes a flag of `field` when told to skip `skip`:
+// a command-line option not named there. (`placedb options` reports the
+// same rule.)
+bool IsFlag(const OptionField& field, const std::vector<std::string>& skip);
+
 // What AddOptionFlags bound: which command took which table's options (but
 // `skip`), in the order they were bound. `placedb options` prints them.
 struct BoundTable {

@@ -69,9 +69,7 @@ class OptionsCommand : public Command {
       if (std::find(use->commands.begin(), use->commands.end(), b.command) == use->commands.end())
         use->commands.push_back(b.command);
       for (const auto& e : b.table->entries()) {
-        if ((e.field.surfaces & kCommandLine) &&
-            std::find(b.skip.begin(), b.skip.end(), e.field.name) == b.skip.end())
-          use->shown.insert(e.field.name);
+        if (IsFlag(e.field, b.skip)) use->shown.insert(e.field.name);
       }
     }
     for (const Use& u : uses) {
@@ -114,9 +112,7 @@ class OptionsCommand : public Command {
       if (b.command == "options") continue;
       commands[b.table].insert(b.command);
       for (const auto& e : b.table->entries()) {
-        if ((e.field.surfaces & kCommandLine) &&
-            std::find(b.skip.begin(), b.skip.end(), e.field.name) == b.skip.end())
-          shown_by[e.field.name].insert(b.command);
+        if (IsFlag(e.field, b.skip)) shown_by[e.field.name].insert(b.command);
       }
     }
     nlohmann::json tables = nlohmann::json::array();
