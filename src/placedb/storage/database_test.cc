@@ -952,12 +952,19 @@ void PutAt(std::string* bytes, size_t at, T value) {
 
 // Keyframe i's source and stored-image name replaced (they must fit in the
 // bytes its strings take now).
+// The bytes record `i`'s source and stored-image name take in the strings
+// section, which SetStrings may fill.
+size_t StringRoom(const std::string& bytes, size_t i) {
+  const FileLayout f(bytes);
+  const size_t r = f.Record(i);
+  return f.Get<uint32_t>(r + 132) + f.Get<uint32_t>(r + 144);
+}
+
 bool SetStrings(std::string* bytes, size_t i, const std::string& source, const std::string& image) {
   const FileLayout f(*bytes);
   const size_t r = f.Record(i);
   const uint64_t offset = f.Get<uint64_t>(r + 136);
-  const uint32_t room = f.Get<uint32_t>(r + 132) + f.Get<uint32_t>(r + 144);
-  if (source.size() + image.size() > room) return false;
+  if (source.size() + image.size() > StringRoom(*bytes, i)) return false;
   const size_t at = f.Section(keyframe_file::kStrings) + offset;
   std::memcpy(&(*bytes)[at], source.data(), source.size());
   std::memcpy(&(*bytes)[at + source.size()], image.data(), image.size());
@@ -1193,10 +1200,13 @@ TEST_F(DatabaseFileTest, MutatedNamesStringsKeypointsAndRows) {
   EXPECT_GT(names_refused, 300);
   // Strings of any bytes but NUL: always open, dump and print safely.
   for (int i = 0; i < 200; ++i) {
-    std::string source;
-    for (size_t n = 1 + rng() % 40; n > 0; --n) source += static_cast<char>(1 + rng() % 255);
-    std::string bytes = bytes_;
+    // Up to 40 bytes, within the record's room: the fixture's source is a
+    // path into the checkout, as short as the checkout's own path.
     const size_t k = rng() % 3;
+    std::string source;
+    for (size_t n = 1 + rng() % std::min<size_t>(40, StringRoom(bytes_, k)); n > 0; --n)
+      source += static_cast<char>(1 + rng() % 255);
+    std::string bytes = bytes_;
     ASSERT_TRUE(SetStrings(&bytes, k, source, ""));
     WriteResealed(bytes);
     const Database db = Database::Load(Dir());
