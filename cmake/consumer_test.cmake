@@ -4,7 +4,10 @@
 #   2. the installed placedb binary builds a database of the sample data;
 #   3. examples/consumer is configured and built with find_package(placedb);
 #   4. the consumer opens the database and answers one query, which must be
-#      a true match (042.jpg revisits the place of keyframes 1-5).
+#      a true match (042.jpg revisits the place of keyframes 1-5);
+#   5. with PYTHON and PYTHON_DIR (a build with the module): the installed
+#      module imports with PYTHONPATH=PREFIX/PYTHON_DIR, as the README says,
+#      and is the installed one.
 cmake_policy(VERSION 3.16)
 function(run)
   execute_process(COMMAND ${ARGN} RESULT_VARIABLE code OUTPUT_VARIABLE out ERROR_VARIABLE err)
@@ -66,4 +69,17 @@ run(${WORK_DIR}/build/where_am_i ${WORK_DIR}/db ${images}/042.jpg)
 message(STATUS "consumer output:\n${last_output}")
 if(NOT last_output MATCHES "keyframe [1-5] ")
   message(FATAL_ERROR "the consumer's answer is not a true match of 042.jpg:\n${last_output}")
+endif()
+
+if(DEFINED PYTHON_DIR)
+  if(NOT EXISTS ${prefix}/${PYTHON_DIR})
+    message(FATAL_ERROR "the install lacks the Python module's folder ${PYTHON_DIR}")
+  endif()
+  run(${CMAKE_COMMAND} -E env PYTHONPATH=${prefix}/${PYTHON_DIR}
+      ${PYTHON} -c "print(__import__('placedb').__file__)")
+  string(STRIP "${last_output}" module_file)
+  cmake_path(IS_PREFIX prefix "${module_file}" NORMALIZE installed_module)
+  if(NOT installed_module)
+    message(FATAL_ERROR "import placedb found ${module_file}, not the module installed in ${prefix}")
+  endif()
 endif()

@@ -42,9 +42,14 @@ install(FILES ${PROJECT_BINARY_DIR}/placedbConfig.cmake
 # examples/consumer against it with find_package(placedb), run it on a
 # database of the sample data.
 if(PLACEDB_BUILD_TESTS)
+  set(consumer_python_args)
+  if(TARGET placedb_python)
+    # The installed Python module imports from the documented path.
+    set(consumer_python_args -DPYTHON=${Python3_EXECUTABLE} -DPYTHON_DIR=${PLACEDB_PYTHON_INSTALL_DIR})
+  endif()
   add_test(NAME install_consumer_test
     COMMAND ${CMAKE_COMMAND}
-      -DBUILD_DIR=${PROJECT_BINARY_DIR}
+      -DBUILD_DIR=${PROJECT_BINARY_DIR} ${consumer_python_args}
       -DSOURCE_DIR=${PROJECT_SOURCE_DIR}
       -DWORK_DIR=${PROJECT_BINARY_DIR}/consumer_test
       -P ${PROJECT_SOURCE_DIR}/cmake/consumer_test.cmake)

@@ -3,6 +3,13 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
 #include <iostream>
 
 #include "placedb/cli/options.h"
@@ -14,6 +21,26 @@
 
 namespace placedb {
 namespace cli {
+
+namespace {
+
+class PlacedbHelpFormatter : public CLI::Formatter {
+ public:
+  std::string make_option_name(const CLI::Option* opt, bool is_positional) const override {
+    std::string name = CLI::Formatter::make_option_name(opt, is_positional);
+    for (const char* marker : {"{false}", "{true}"}) {
+      for (size_t at = name.find(marker); at != std::string::npos; at = name.find(marker))
+        name.erase(at, std::string(marker).size());
+    }
+    return name;
+  }
+};
+
+}  // namespace
+
+std::shared_ptr<CLI::Formatter> HelpFormatter() {
+  return std::make_shared<PlacedbHelpFormatter>();
+}
 
 void SourceArgs::Add(CLI::App* cmd) {
   AddOptionFlags(cmd, &source);
@@ -79,10 +106,53 @@ void DatabaseArgs::Add(CLI::App* cmd, bool threads) {
 
 PlaceDatabase DatabaseArgs::Open() const { return PlaceDatabase::Open(dir, open); }
 
+namespace {
+
+// The descriptor of the original stdout once ReserveStdoutForJson moved the
+// human text away (-1 before), and the --json path that named it.
+int json_stdout_fd = -1;
+std::string json_stdout_path;
+
+// Whether `path` is the file stdout is: a FIFO, a tty, a regular file.
+bool IsStdout(const std::string& path) {
+  if (path == "-") return true;
+  struct stat named, out;
+  return ::stat(path.c_str(), &named) == 0 && ::fstat(STDOUT_FILENO, &out) == 0 &&
+         named.st_dev == out.st_dev && named.st_ino == out.st_ino;
+}
+
+}  // namespace
+
+bool ReserveStdoutForJson(const std::string& json_path) {
+  if (json_path.empty() || json_stdout_fd >= 0 || !IsStdout(json_path)) return false;
+  std::fflush(stdout);
+  std::cout.flush();
+  const int fd = ::fcntl(STDOUT_FILENO, F_DUPFD_CLOEXEC, 3);
+  if (fd < 0) return false;
+  // fd 1 becomes stderr: fmt::print, printf and std::cout all follow.
+  if (::dup2(STDERR_FILENO, STDOUT_FILENO) < 0) {
+    ::close(fd);
+    return false;
+  }
+  // Line by line, as stderr is read: the human text keeps its place
+  // beside the log lines.
+  std::setvbuf(stdout, nullptr, _IOLBF, 0);
+  json_stdout_fd = fd;
+  json_stdout_path = json_path;
+  return true;
+}
+
 void WriteJson(const std::string& path, const std::string& json) {
   if (path.empty()) return;
+  if (json_stdout_fd >= 0 && path == json_stdout_path) {
+    std::fflush(stdout);
+    const std::string text = json + "\n";
+    if (!WriteAll(json_stdout_fd, text.data(), text.size()))
+      PLACEDB_THROW_IO("cannot write the JSON to stdout: ", std::strerror(errno));
+    return;
+  }
   if (path == "-") {
-    std::cout << json << "\n";
+    std::cout << json << "\n" << std::flush;
     return;
   }
   WriteFileAtomic(path, json + "\n");

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -13,6 +14,12 @@
 
 namespace placedb {
 namespace cli {
+
+// The help screens' format, set on the app before its sub-commands are
+// added (they inherit it): a negatable flag reads "--verify,--no-verify"
+// (CLI11 would print "--verify,--no-verify{false}"), its default said in
+// its help.
+std::shared_ptr<CLI::Formatter> HelpFormatter();
 
 // Where frames come from: FrameSourceOptions' flags (--images or --tum,
 // --first, --last, --frame-size, --max-image-pixels and the TUM options),
@@ -50,6 +57,13 @@ struct DatabaseArgs {
   PlaceDatabase Open() const;
 };
 
+// Keeps stdout for JSON alone, so that `--json - | python3 -m json.tool`
+// works: when `json_path` is "-" or names the file stdout is (`/dev/stdout`,
+// `/dev/fd/1`, the pipe or file stdout was redirected to), everything else
+// the command prints to stdout is sent to stderr from now on, and WriteJson
+// writes to the original stdout. Returns whether it did. Called once, after
+// the flags are parsed and before the command prints anything.
+bool ReserveStdoutForJson(const std::string& json_path);
 // Writes JSON text to `path` ("-": stdout; "": nothing), as every output is
 // written (util/file_io.h: a regular file replaced whole, a special file
 // streamed).

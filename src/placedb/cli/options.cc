@@ -117,12 +117,17 @@ void AddOptionFlags(CLI::App* cmd, const OptionTableBase& table, void* options,
           flag = cmd->add_flag_function(
               f.flag, [e, options](int64_t) { e->set(options, true); }, help);
           break;
-        case BoolFlag::kNegatable:
-          // CLI11 counts --name as 1 and --no-name as -1.
+        case BoolFlag::kNegatable: {
+          // CLI11 counts --name as 1 and --no-name as -1. The default is
+          // said in words: "--verify,--no-verify=true" reads ambiguously.
+          const bool on = OptionTableBase::Text(entry.get(options)) == "true";
+          const std::string positive = f.flag.substr(0, f.flag.find(','));
           flag = cmd->add_flag_function(
-              f.flag, [e, options](int64_t count) { e->set(options, count > 0); }, help);
-          flag->default_str(OptionTableBase::Text(entry.get(options)));
+              f.flag, [e, options](int64_t count) { e->set(options, count > 0); },
+              help + (on ? " (default: on; --no-" + positive.substr(2) + " turns it off)"
+                         : " (default: off; " + positive + " turns it on)"));
           break;
+        }
         case BoolFlag::kInverted:
           flag = cmd->add_flag_function(
               f.flag, [e, options](int64_t) { e->set(options, false); }, help);

@@ -297,13 +297,15 @@ cv::Mat LoadFrameImage(const Frame& frame) {
 }
 
 void ThrowUnreadableFrame(const Frame& frame, const std::string& context) {
+  // Frame 0 is no listing's: a single file (read_image).
+  const std::string which =
+      frame.id == 0 && context.empty() ? "" : " (frame " + std::to_string(frame.id) + context + ")";
   struct stat st;
   if (!frame.load && ::stat(frame.image_path.c_str(), &st) != 0 &&
       (errno == ENOENT || errno == ENOTDIR)) {
-    PLACEDB_THROW_NOT_FOUND("image ", frame.image_path, " not found (frame ", frame.id, context,
-                            ")");
+    PLACEDB_THROW_NOT_FOUND("image ", frame.image_path, " does not exist", which);
   }
-  PLACEDB_THROW_INVALID("cannot read image ", frame.image_path, " (frame ", frame.id, context, ")");
+  PLACEDB_THROW_INVALID("cannot read image ", frame.image_path, which);
 }
 
 std::vector<Frame> SelectFrameRange(std::vector<Frame> frames, int first, int last,

@@ -82,6 +82,11 @@ std::vector<Frame> ListImageFolder(const std::string& dir, int first, int last) 
     if (!entry.is_regular_file(type_ec)) continue;
     names.push_back(name);
   }
+  if (names.empty() && (fs::is_regular_file(fs::path(dir) / "rgb.txt", ec) ||
+                        fs::is_directory(fs::path(dir) / "rgb", ec))) {
+    PLACEDB_THROW_INVALID(dir, ": no images found; it looks like a TUM RGB-D folder (rgb.txt, "
+                               "rgb/): read it with `tum`");
+  }
   std::sort(names.begin(), names.end());
   std::vector<std::string> paths;
   paths.reserve(names.size());
@@ -109,8 +114,12 @@ std::vector<Frame> ReadImages(const std::string& path, int first, int last) {
   std::error_code ec;
   if (fs::is_directory(path, ec)) return ListImageFolder(path, first, last);
   if (fs::is_regular_file(path, ec)) return ReadImageList(path, first, last);
-  if (!fs::exists(path, ec)) PLACEDB_THROW_NOT_FOUND("no image folder or image list at ", path);
-  PLACEDB_THROW_INVALID("not an image folder nor an image list file: ", path);
+  if (!fs::exists(path, ec)) {
+    PLACEDB_THROW_NOT_FOUND(path, " does not exist (`images` takes an image folder or a file "
+                                  "listing images)");
+  }
+  PLACEDB_THROW_INVALID(path, " is neither a folder nor a regular file (`images` takes an image "
+                              "folder or a file listing images)");
 }
 
 }  // namespace placedb

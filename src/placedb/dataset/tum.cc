@@ -81,10 +81,17 @@ std::vector<TumPoseStamped> ReadTumTrajectory(const std::string& path) {
 std::vector<Frame> ReadTumSequence(const std::string& dir, const TumOptions& options) {
   PLACEDB_CHECK_OPTIONS(options);
   std::error_code ec;
-  if (!fs::is_directory(dir, ec)) PLACEDB_THROW_NOT_FOUND("TUM folder not found: ", dir);
+  if (!fs::is_directory(dir, ec)) {
+    if (!fs::exists(dir, ec)) {
+      PLACEDB_THROW_NOT_FOUND(dir, " does not exist (`tum` takes a TUM RGB-D folder)");
+    }
+    PLACEDB_THROW_INVALID(dir, " is not a folder (`tum` takes a TUM RGB-D folder; an image list "
+                               "is read with `images`)");
+  }
   const std::string rgb_path = (fs::path(dir) / options.rgb_list).string();
   if (!fs::exists(rgb_path, ec)) {
-    PLACEDB_THROW_NOT_FOUND("not a TUM RGB-D folder: ", options.rgb_list, " not found in ", dir);
+    PLACEDB_THROW_NOT_FOUND("not a TUM RGB-D folder: ", options.rgb_list, " not found in ", dir,
+                            " (a folder of images is read with `images`)");
   }
 
   std::vector<Frame> frames;

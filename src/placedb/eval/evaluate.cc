@@ -8,7 +8,9 @@
 #include <filesystem>
 #include <limits>
 #include <opencv2/imgcodecs.hpp>
+#include <map>
 #include <random>
+#include <set>
 
 #include "placedb/query/query.h"
 #include "placedb/util/check.h"
@@ -47,9 +49,102 @@ std::vector<Frame> SelectQueries(const std::vector<Frame>& frames, const GroundT
   return SampleFrames(std::move(candidates), options.all ? 0 : options.num_queries, options.seed);
 }
 
+namespace {
+
+// Whether two paths name one file: the same file, or files of the same name
+// and the same bytes (a copy of the sequence in another folder).
+class SameImageFinder {
+ public:
+  explicit SameImageFinder(const std::vector<Keyframe>& keyframes) {
+    for (const Keyframe& k : keyframes) {
+      if (k.source.empty()) continue;
+      std::error_code ec;
+      const fs::path canonical = fs::weakly_canonical(k.source, ec);
+      if (!ec) canonical_.insert(canonical.string());
+      by_name_[fs::path(k.source).filename().string()].push_back(k.source);
+    }
+  }
+
+  bool Contains(const Frame& f) const {
+    if (f.load || f.image_path.empty()) return false;  // not a file (a bag's message)
+    std::error_code ec;
+    const fs::path canonical = fs::weakly_canonical(f.image_path, ec);
+    if (!ec && canonical_.count(canonical.string()) > 0) return true;
+    const auto it = by_name_.find(fs::path(f.image_path).filename().string());
+    if (it == by_name_.end()) return false;
+    const uintmax_t size = fs::file_size(f.image_path, ec);
+    if (ec) return false;
+    for (const std::string& source : it->second) {
+      std::error_code ec2;
+      if (fs::file_size(source, ec2) != size || ec2) continue;
+      try {
+        if (ReadFileToString(source) == ReadFileToString(f.image_path)) return true;
+      } catch (const Error&) {
+        // Unreadable: not known to be the same.
+      }
+    }
+    return false;
+  }
+
+ private:
+  std::set<std::string> canonical_;
+  std::map<std::string, std::vector<std::string>> by_name_;
+};
+
+}  // namespace
+
+std::vector<std::string> EvaluationDoubts(const std::vector<Frame>& queries,
+                                          const std::vector<Keyframe>& keyframes,
+                                          const GroundTruth& truth) {
+  std::vector<std::string> doubts;
+  const SameImageFinder same(keyframes);
+  int num_same = 0;
+  const Frame* example = nullptr;
+  for (const Frame& q : queries) {
+    if (!same.Contains(q)) continue;
+    if (num_same++ == 0) example = &q;
+  }
+  if (num_same > 0) {
+    doubts.push_back(fmt::format(
+        "{} of {} query frames are database frames (e.g. frame {}, {}): they find themselves; "
+        "query other frames (--first/--last) or another sequence",
+        num_same, queries.size(), example->id, example->image_path));
+  }
+  if (!truth.CanJudgeAny(keyframes)) {
+    const bool poses = truth.Describe().rfind("poses", 0) == 0;
+    doubts.push_back(
+        poses ? std::string("the ground truth is poses and no keyframe of the database has a pose: "
+                            "no answer can be judged (build from --tum or a bag with poses, or "
+                            "give --truth)")
+              : std::string("the match list names none of the database's keyframe ids: no answer "
+                            "can be judged (is it the truth of this database?)"));
+  } else {
+    const bool any_answerable = std::any_of(queries.begin(), queries.end(), [&](const Frame& q) {
+      return truth.AnyCorrectIn(q, keyframes);
+    });
+    if (!queries.empty() && !any_answerable) {
+      doubts.push_back(fmt::format(
+          "none of the {} queries has a true match in the database ({}): recall and precision "
+          "are 0/0",
+          queries.size(), truth.Describe()));
+    }
+  }
+  return doubts;
+}
+
+void ReportEvaluationDoubts(const std::vector<std::string>& doubts, bool strict) {
+  if (doubts.empty()) return;
+  if (strict) {
+    std::string all;
+    for (const std::string& d : doubts) all += (all.empty() ? "" : "; ") + d;
+    PLACEDB_THROW_INVALID("refused (strict): the evaluation cannot mean anything: ", all);
+  }
+  for (const std::string& d : doubts) spdlog::warn("meaningless evaluation: {}", d);
+}
+
 EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_frames,
                     const GroundTruth& truth, const EvalOptions& eval_options,
-                    const QueryOptions& query_options) {
+                    const QueryOptions& query_options, bool check_doubts) {
   PLACEDB_CHECK_OPTIONS(eval_options);
   PLACEDB_CHECK_OPTIONS(query_options);
   if (db.empty()) PLACEDB_THROW_INVALID("the database is empty: no keyframes to match against");
@@ -73,7 +168,10 @@ EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_fra
   if (!eval_options.all && static_cast<size_t>(eval_options.num_queries) > queries.size()) {
     spdlog::info("only {} queries have ground truth; evaluating all of them", queries.size());
   }
+  const std::vector<Keyframe>& keyframes = StorageView(db).database().keyframes();
   EvalReport report;
+  report.doubts = EvaluationDoubts(queries, keyframes, truth);
+  if (check_doubts) ReportEvaluationDoubts(report.doubts, eval_options.strict);
   report.truth = truth.Describe();
   report.min_score = query_options.min_score;
   report.verified = query_options.verify.enabled;
@@ -86,7 +184,7 @@ EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_fra
     QueryRecord rec;
     rec.query_id = q.id;
     rec.image = q.image_path;
-    rec.has_true_match_in_db = truth.AnyCorrectIn(q, StorageView(db).database().keyframes());
+    rec.has_true_match_in_db = truth.AnyCorrectIn(q, keyframes);
     const cv::Mat image = LoadFrameImage(q);
     if (image.empty()) {
       spdlog::warn("skipped unreadable query image {} (frame {})", q.image_path, q.id);
@@ -185,6 +283,7 @@ nlohmann::json EvalReportToJson(const EvalReport& r) {
   j["recall_at_1"] = r.recall_at_1;
   j["recall_at_5"] = r.recall_at_5;
   j["verified"] = r.verified;
+  j["doubts"] = r.doubts;
   nlohmann::json curve = nlohmann::json::array();
   for (const PrPoint& p : r.precision_recall.curve) curve.push_back(PointJson(p));
   j["precision_recall"] = {
@@ -230,15 +329,19 @@ std::string FormatEvalReport(const EvalReport& r) {
                      r.num_answerable);
   out += fmt::format("  verification      {:>10}\n", r.verified ? "on" : "off");
   out += fmt::format("  correct @1        {:>10}\n", r.num_correct);
-  out += fmt::format("  recall@1          {:>10.3f}\n", r.recall_at_1);
-  out += fmt::format("  recall@5          {:>10.3f}\n", r.recall_at_5);
+  // With nothing answerable, recall is 0/0: not a number to read.
+  const auto ratio = [&](double value) {
+    return r.num_answerable > 0 ? fmt::format("{:.3f}", value) : std::string("n/a");
+  };
+  out += fmt::format("  recall@1          {:>10}\n", ratio(r.recall_at_1));
+  out += fmt::format("  recall@5          {:>10}\n", ratio(r.recall_at_5));
   out += fmt::format("  answered          {:>10}   (best score >= {:g})\n",
                      pr.at_threshold.answered, r.min_score);
-  out += fmt::format("  precision         {:>10.3f}   at that threshold (recall {:.3f})\n",
-                     pr.at_threshold.precision, pr.at_threshold.recall);
-  out += fmt::format("  PR AUC            {:>10.3f}   (average precision over the threshold)\n",
-                     pr.average_precision);
-  out += fmt::format("  recall @ P=1      {:>10.3f}\n", pr.recall_at_full_precision);
+  out += fmt::format("  precision         {:>10}   at that threshold (recall {})\n",
+                     ratio(pr.at_threshold.precision), ratio(pr.at_threshold.recall));
+  out += fmt::format("  PR AUC            {:>10}   (average precision over the threshold)\n",
+                     ratio(pr.average_precision));
+  out += fmt::format("  recall @ P=1      {:>10}\n", ratio(pr.recall_at_full_precision));
   out += fmt::format("  latency ms        {:>10.2f}   mean  (p50 {:.2f}, p99 {:.2f})\n",
                      r.latency_ms.mean, r.latency_ms.p50, r.latency_ms.p99);
   out += fmt::format("  stages ms         {:>10}   extract {:.2f}, match {:.2f}, verify {:.2f}\n",
@@ -257,6 +360,7 @@ std::string FormatEvalReport(const EvalReport& r) {
   out += fmt::format("  whole frames PNG  {:>10} bytes\n", r.full_png_bytes);
   out += fmt::format("  image reduction   {:>9.1f}%   vs storing every frame whole\n",
                      100.0 * r.reduction_vs_full);
+  for (const std::string& d : r.doubts) out += fmt::format("  WARNING: {}\n", d);
   return out;
 }
 

@@ -31,6 +31,9 @@ struct EvalOptions {
   // robot moving through the map would: realistic priors for cluster
   // search. Default false (every query without a prior).
   bool sequence = false;
+  // Refuse, instead of warning about, an evaluation that cannot mean
+  // anything (EvaluationDoubts). Default false.
+  bool strict = false;
 
   // The options' names, defaults, ranges and help (util/option_table.h).
   static const OptionTable<EvalOptions>& Table();
@@ -80,6 +83,8 @@ struct EvalReport {
   uint64_t full_png_bytes = 0;     // every database frame stored whole as PNG
   double reduction_vs_full = 0.0;  // 1 - image_bytes / full_png_bytes
   std::string truth;               // how correctness was decided
+  // Why the numbers may mean nothing (EvaluationDoubts), warned about.
+  std::vector<std::string> doubts;
   std::vector<QueryRecord> queries;
 };
 
@@ -92,10 +97,28 @@ std::vector<Frame> SampleFrames(std::vector<Frame> frames, int n, uint64_t seed)
 std::vector<Frame> SelectQueries(const std::vector<Frame>& frames, const GroundTruth& truth,
                                  const EvalOptions& options);
 
-// Runs the evaluation of `db` on `query_frames`.
+// What makes an evaluation of `keyframes` on `queries` mean nothing, found
+// before any query runs, one sentence each (empty: nothing to say):
+// - query frames that are database frames (the same image file: the same
+//   path, or the same file name and bytes): they find themselves;
+// - a truth that can judge no keyframe: a match list naming none of the
+//   keyframes' ids, pose truth against keyframes without poses;
+// - no query has a true match among the keyframes: recall and precision
+//   would be 0/0.
+std::vector<std::string> EvaluationDoubts(const std::vector<Frame>& queries,
+                                          const std::vector<Keyframe>& keyframes,
+                                          const GroundTruth& truth);
+// Warns about each doubt (one line each, "meaningless evaluation: ..."), or
+// with `strict` throws InvalidArgument naming them all.
+void ReportEvaluationDoubts(const std::vector<std::string>& doubts, bool strict);
+
+// Runs the evaluation of `db` on `query_frames`. The doubts of
+// EvaluationDoubts are warned about (refused with eval_options.strict).
+// `check_doubts` false: the caller checked them already (an experiment,
+// once for all its settings); the report lists them all the same.
 EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_frames,
                     const GroundTruth& truth, const EvalOptions& eval_options,
-                    const QueryOptions& query_options);
+                    const QueryOptions& query_options, bool check_doubts = true);
 
 // The report as JSON: num_queries, num_correct, recall_at_1, recall_at_5,
 // precision_recall {average_precision, recall_at_full_precision,

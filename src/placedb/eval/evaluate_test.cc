@@ -460,5 +460,68 @@ TEST(EvaluateTest, EmptySelectionAndEmptyDatabaseAreErrors) {
                InvalidArgument);
 }
 
+// EvaluationDoubts, on frames and keyframes alone (no database, no query).
+Keyframe KeyframeOf(const Frame& f) {
+  Keyframe k;
+  k.id = f.id;
+  k.pose = f.pose;
+  k.source = f.image_path;
+  return k;
+}
+
+TEST(EvaluationDoubtsTest, NamesQueriesThatAreDatabaseFramesByPathOrContent) {
+  const std::vector<Frame> frames = ListImageFolder(kRtabmapImages, 1, 50);
+  std::vector<Keyframe> keyframes;
+  for (int i = 0; i < 40; ++i) keyframes.push_back(KeyframeOf(frames[i]));
+  const GroundTruth truth = RtabmapTruth();
+  // Queries 41-50: another part of the loop, answerable.
+  const std::vector<Frame> others(frames.begin() + 40, frames.end());
+  EXPECT_TRUE(EvaluationDoubts(others, keyframes, truth).empty());
+  // Queries 35-44: 6 are keyframes, named by path.
+  const std::vector<Frame> overlapping(frames.begin() + 34, frames.begin() + 44);
+  const std::vector<std::string> doubts = EvaluationDoubts(overlapping, keyframes, truth);
+  ASSERT_EQ(doubts.size(), 1u);
+  EXPECT_NE(doubts[0].find("6 of 10 query frames are database frames"), std::string::npos)
+      << doubts[0];
+  // A copy of a keyframe's file under another folder: the same frame.
+  testing_util::TempDir tmp;
+  fs::copy_file(frames[2].image_path, tmp.Path(fs::path(frames[2].image_path).filename()));
+  Frame copy = frames[40];
+  copy.image_path = tmp.Path(fs::path(frames[2].image_path).filename());
+  EXPECT_EQ(EvaluationDoubts({copy}, keyframes, truth).size(), 1u);
+  // The same name with other bytes is another frame.
+  fs::remove(copy.image_path);
+  fs::copy_file(frames[41].image_path, copy.image_path);
+  EXPECT_TRUE(EvaluationDoubts({copy}, keyframes, truth).empty());
+  // Strict refuses; otherwise a warning only.
+  EXPECT_NO_THROW(ReportEvaluationDoubts(doubts, false));
+  EXPECT_THROW(ReportEvaluationDoubts(doubts, true), InvalidArgument);
+  EXPECT_NO_THROW(ReportEvaluationDoubts({}, true));
+}
+
+TEST(EvaluationDoubtsTest, NamesTruthThatJudgesNothingAndNothingAnswerable) {
+  const std::vector<Frame> frames = ListImageFolder(kRtabmapImages, 1, 84);
+  std::vector<Keyframe> keyframes;
+  for (int i = 0; i < 10; ++i) keyframes.push_back(KeyframeOf(frames[i]));
+  // Pose truth, keyframes without poses.
+  const std::vector<std::string> no_poses = EvaluationDoubts(
+      {frames[50]}, keyframes, GroundTruth::FromPoses(PoseThresholds()));
+  ASSERT_EQ(no_poses.size(), 1u);
+  EXPECT_NE(no_poses[0].find("no keyframe of the database has a pose"), std::string::npos);
+  // A match list whose ids are none of the keyframes'.
+  MatchTruth list;
+  list[60] = {70, 71};
+  const std::vector<std::string> foreign =
+      EvaluationDoubts({frames[59]}, keyframes, GroundTruth::FromMatchList(list));
+  ASSERT_EQ(foreign.size(), 1u);
+  EXPECT_NE(foreign[0].find("names none of the database's keyframe ids"), std::string::npos);
+  // The list judges keyframe 5, but not for this query: nothing answerable.
+  list[61] = {5};
+  const std::vector<std::string> unanswerable =
+      EvaluationDoubts({frames[59]}, keyframes, GroundTruth::FromMatchList(list));
+  ASSERT_EQ(unanswerable.size(), 1u);
+  EXPECT_NE(unanswerable[0].find("none of the 1 queries has a true match"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace placedb

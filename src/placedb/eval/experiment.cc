@@ -475,10 +475,22 @@ ExperimentSummary RunExperiment(const ExperimentData& data, const GroundTruth& t
   PLACEDB_CHECK_OPTIONS(options);
   if (data.database.empty()) PLACEDB_THROW_INVALID("the experiment has no database frames");
   if (data.queries.empty()) PLACEDB_THROW_INVALID("the experiment has no query frames");
-  if (SelectQueries(data.queries, truth, options.eval).empty()) {
+  const std::vector<Frame> selected = SelectQueries(data.queries, truth, options.eval);
+  if (selected.empty()) {
     PLACEDB_THROW_INVALID("no query frame has ground truth (", truth.Describe(),
                           "); nothing to evaluate");
   }
+  // Checked once, before any database is built, on the frames the
+  // databases will hold (a crop or resize keeps each frame's id and pose).
+  std::vector<Keyframe> would_be;
+  for (const Frame& f : data.database) {
+    Keyframe k;
+    k.id = f.id;
+    k.pose = f.pose;
+    k.source = f.load ? std::string() : f.image_path;
+    would_be.push_back(std::move(k));
+  }
+  ReportEvaluationDoubts(EvaluationDoubts(selected, would_be, truth), options.eval.strict);
   const std::vector<ExperimentSetting> grid = options.Grid();
   nlohmann::json names = nlohmann::json::array();
   for (const ExperimentSetting& s : grid) names.push_back(s.Name());
@@ -535,7 +547,8 @@ ExperimentSummary RunExperiment(const ExperimentData& data, const GroundTruth& t
     nlohmann::json build_json;
     const PlaceDatabase db = OpenOrBuild(data, options, g.first, out, &build_json);
     for (const ExperimentSetting& s : todo) {
-      const EvalReport r = Evaluate(db, data.queries, truth, eval, QueryFor(options, s.verify));
+      const EvalReport r =
+          Evaluate(db, data.queries, truth, eval, QueryFor(options, s.verify), false);
       nlohmann::json j = {{"setting", SettingJson(s)},
                           {"num_keyframes", db.size()},
                           {"build", build_json},
@@ -544,8 +557,11 @@ ExperimentSummary RunExperiment(const ExperimentData& data, const GroundTruth& t
       finished[s.Name()] = std::move(j);
       ++index;
       if (options.progress) {
-        fmt::print(stderr, "[{}/{}] {}: {}/{} correct, recall@1 {:.3f}, {:.2f} ms/query\n", index,
-                   grid.size(), s.Label(), r.num_correct, r.num_queries, r.recall_at_1,
+        fmt::print(stderr,
+                   "[{}/{}] {}: {} correct of {} answerable ({} queries), recall@1 {}, {:.2f} "
+                   "ms/query\n",
+                   index, grid.size(), s.Label(), r.num_correct, r.num_answerable, r.num_queries,
+                   r.num_answerable > 0 ? fmt::format("{:.3f}", r.recall_at_1) : "n/a",
                    r.latency_ms.mean);
       }
     }

@@ -46,6 +46,22 @@ bool GroundTruth::AnyCorrectIn(const Frame& query, const std::vector<Keyframe>& 
   return false;
 }
 
+bool GroundTruth::CanJudgeAny(const std::vector<Keyframe>& keyframes) const {
+  if (!list_) {
+    return std::any_of(keyframes.begin(), keyframes.end(),
+                       [](const Keyframe& k) { return k.pose.has_value(); });
+  }
+  std::vector<int32_t> ids;
+  for (const Keyframe& k : keyframes) ids.push_back(k.id);
+  std::sort(ids.begin(), ids.end());
+  for (const auto& [query, truth_ids] : *list_) {
+    for (const int id : truth_ids) {
+      if (std::binary_search(ids.begin(), ids.end(), id)) return true;
+    }
+  }
+  return false;
+}
+
 std::vector<int> GroundTruth::IdsAbove(int max_id) const {
   std::vector<int> out;
   if (!list_) return out;

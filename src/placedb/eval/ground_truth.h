@@ -42,6 +42,9 @@ class GroundTruth {
   // Whether the database holds at least one correct answer for `query`.
   bool AnyCorrectIn(const Frame& query, const std::vector<Keyframe>& keyframes) const;
 
+  // Whether any of `keyframes` can ever be judged correct: a match list
+  // names one of their ids; pose truth: one has a pose.
+  bool CanJudgeAny(const std::vector<Keyframe>& keyframes) const;
   // Match list: the query and keyframe ids it names above `max_id` (sorted,
   // unique), ids no frame of the data can have. Poses: none.
   std::vector<int> IdsAbove(int max_id) const;

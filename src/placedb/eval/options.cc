@@ -53,6 +53,10 @@ const OptionTable<EvalOptions>& EvalOptions::Table() {
            "replay the queries in id order, each with the previous answer as its prior "
            "(`prior_keyframe`), as a moving robot would",
            BoolFlag::kSwitch, kCallers);
+    t.Bool("strict", PLACEDB_MEMBER(O, strict),
+           "refuse an evaluation that cannot mean anything (queries that are database frames, "
+           "no answerable query, truth that judges no keyframe); default: warn",
+           BoolFlag::kSwitch, kCallers);
     // The command line's --quiet turns it off.
     t.Bool("progress", PLACEDB_MEMBER(O, progress), "draw a progress bar (only on a terminal)",
            BoolFlag::kValue, kPython);
@@ -114,10 +118,10 @@ const OptionTable<ExperimentOptions>& ExperimentOptions::Table() {
     // Everything else of a build and a query; the grid sets the feature type,
     // crop, resize and verification, the experiment its own folder and
     // progress, and a prior means nothing for random queries.
+    // The retrieval index and its vocabulary are every database's (bow
+    // search needs `index` bow).
     t.Nest(PLACEDB_MEMBER(O, build), BuildOptions::Table(), kCallers,
-           {"features", "crop", "resize", "extract_in_context", "store_images", "index",
-            "vocabulary_branching", "vocabulary_depth", "vocabulary_iterations",
-            "vocabulary_sample", "vocabulary_seed", "vocabulary", "direct_level", "strict",
+           {"features", "crop", "resize", "extract_in_context", "store_images", "strict",
             "progress", "overwrite"});
     t.Nest(PLACEDB_MEMBER(O, query), QueryOptions::Table(), kCallers,
            {"verify", "prior_keyframe", "prior_pose"});
@@ -136,6 +140,13 @@ const OptionTable<ExperimentOptions>& ExperimentOptions::Table() {
   return table;
 }
 
-std::string ExperimentOptions::Check() const { return Table().Check(*this); }
+std::string ExperimentOptions::Check() const {
+  std::string error = Table().Check(*this);
+  if (error.empty() && query.retrieval.method == RetrievalMethod::kBow &&
+      build.index != IndexKind::kBow) {
+    error = "`search` bow needs databases with a bag-of-words index: add `index` bow";
+  }
+  return error;
+}
 
 }  // namespace placedb

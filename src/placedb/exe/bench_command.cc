@@ -22,6 +22,10 @@ class BenchCommand : public Command {
     AddOptionFlags(cmd, &options_);
     query_.Add(cmd);
     cmd->add_option("--json", json_, "write the timings as JSON to this file ('-': stdout)");
+    cmd->footer(
+        "Examples:\n"
+        "  placedb bench --db office.db --images data/rtabmap_loop/images --first 41 --last 84\n"
+        "  placedb bench --db office.db --images data/rtabmap_loop/images --first 41 --json - > bench.json\n");
     return cmd;
   }
 

@@ -20,6 +20,10 @@ class BuildCommand : public Command {
     AddOptionFlags(cmd, &options_);
     cmd->add_flag("--quiet", quiet_, "no progress bar");
     cmd->add_option("--json", json_, "write a JSON summary to this file ('-': stdout)");
+    cmd->footer(
+        "Examples:\n"
+        "  placedb build --images data/rtabmap_loop/images --last 40 --crop chroma --out office.db\n"
+        "  placedb build --tum data/tum_fr3_office_32 --last 16 --out office_tum.db   # with poses\n");
     return cmd;
   }
 

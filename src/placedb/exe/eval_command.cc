@@ -28,6 +28,11 @@ class EvalCommand : public Command {
     query_.Add(cmd);
     cmd->add_flag("--quiet", quiet_, "no progress bar");
     cmd->add_option("--json", json_, "write the report as JSON to this file ('-': stdout)");
+    cmd->footer(
+        "Examples:\n"
+        "  placedb eval --db office.db --images data/rtabmap_loop/images --first 41 --last 84 \\\n"
+        "    --truth data/rtabmap_loop/ground_truth.csv --all\n"
+        "  placedb eval --db office_tum.db --tum data/tum_fr3_office_32 --first 17 --json report.json\n");
     return cmd;
   }
 

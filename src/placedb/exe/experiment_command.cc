@@ -37,6 +37,12 @@ class ExperimentCommand : public Command {
         ->required();
     cmd->add_flag("--no-report", no_report_, "write results.json only, no report.html");
     cmd->add_flag("--quiet", quiet_, "no progress");
+    cmd->footer(
+        "Examples:\n"
+        "  placedb experiment --images data/rtabmap_loop/images --db-last 40 --first 41 \\\n"
+        "    --truth data/rtabmap_loop/ground_truth.csv --out experiment\n"
+        "  placedb experiment --tum data/tum_fr3_office_32 --db-last 16 --first 17 --features orb \\\n"
+        "    --crop none --resize 1 --index bow --search bow --out experiment_bow\n");
     return cmd;
   }
 

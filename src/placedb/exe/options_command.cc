@@ -39,6 +39,10 @@ class OptionsCommand : public Command {
     cmd->add_flag("--json", json_,
                   "every option of every table of the library as JSON, with the commands "
                   "whose flags set it");
+    cmd->footer(
+        "Examples:\n"
+        "  placedb options\n"
+        "  placedb options --json | python3 -m json.tool\n");
     return cmd;
   }
 

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "placedb/builder/builder.h"
+#include "placedb/exe/cli_testing.h"
 #include "placedb/storage/database.h"
 #include "placedb/storage/keyframe_file.h"
 #include "placedb/query/query.h"
@@ -33,40 +34,21 @@ const std::string kBinary = PLACEDB_BINARY;
 const std::string kImages = PLACEDB_DATA_DIR "/rtabmap_loop/images";
 const std::string kTruth = PLACEDB_DATA_DIR "/rtabmap_loop/ground_truth.csv";
 
-struct CommandResult {
-  int code = -1;
-  std::string output;  // stdout and stderr
-};
+using placedb::testing_util::CommandResult;
+using placedb::testing_util::Contains;
 
 CommandResult Placedb(const std::string& args) {
-  CommandResult run;
-  const std::string cmd = kBinary + " " + args + " 2>&1";
-  FILE* pipe = popen(cmd.c_str(), "r");
-  if (pipe == nullptr) return run;
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof(buf), pipe)) > 0) run.output.append(buf, n);
-  const int status = pclose(pipe);
-  run.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return run;
+  return placedb::testing_util::RunBinary(kBinary, args);
 }
 
-bool Contains(const std::string& text, const std::string& part) {
-  return text.find(part) != std::string::npos;
+// The exit code and what the binary wrote to stdout alone (stderr dropped).
+CommandResult PlacedbStdout(const std::string& args) {
+  return placedb::testing_util::RunShell(kBinary + " " + args + " 2>/dev/null");
 }
 
 // The exit code and what the binary wrote to stderr alone (stdout dropped).
 CommandResult PlacedbStderr(const std::string& args) {
-  CommandResult run;
-  const std::string cmd = kBinary + " " + args + " 2>&1 >/dev/null";
-  FILE* pipe = popen(cmd.c_str(), "r");
-  if (pipe == nullptr) return run;
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof(buf), pipe)) > 0) run.output.append(buf, n);
-  const int status = pclose(pipe);
-  run.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return run;
+  return placedb::testing_util::RunBinaryStderr(kBinary, args);
 }
 
 class CliTest : public ::testing::Test {
@@ -478,22 +460,21 @@ TEST_F(CliTest, PartitionsAndKeyframeLists) {
   ASSERT_EQ(Placedb("build --images " + kImages + " --last 9 --out " + db + " --quiet").code, 0);
   const std::string query =
       "query --db " + db + " --image " + kImages + "/042.jpg --top-k 9 --json -";
-  const CommandResult part = Placedb(query + " --partition 1/3 2>/dev/null");
+  const CommandResult part = PlacedbStdout(query + " --partition 1/3");
   ASSERT_EQ(part.code, 0) << part.output;
-  const auto p = nlohmann::json::parse(part.output.substr(part.output.find("{\n")));
+  const auto p = nlohmann::json::parse(part.output);
   EXPECT_EQ(p["num_keyframes"], 3u);  // indices 3..5: ids 4, 5, 6
   for (const auto& k : p["ranked"]) {
     EXPECT_GE(k["keyframe_id"].get<int>(), 4);
     EXPECT_LE(k["keyframe_id"].get<int>(), 6);
   }
   const CommandResult inter =
-      Placedb(query + " --partition 0/4 --partition-scheme interleaved 2>/dev/null");
+      PlacedbStdout(query + " --partition 0/4 --partition-scheme interleaved");
   ASSERT_EQ(inter.code, 0) << inter.output;
-  EXPECT_EQ(nlohmann::json::parse(inter.output.substr(inter.output.find("{\n")))["num_keyframes"],
-            3u);
-  const CommandResult ids = Placedb(query + " --keyframes 2,7 2>/dev/null");
+  EXPECT_EQ(nlohmann::json::parse(inter.output)["num_keyframes"], 3u);
+  const CommandResult ids = PlacedbStdout(query + " --keyframes 2,7");
   ASSERT_EQ(ids.code, 0) << ids.output;
-  EXPECT_EQ(nlohmann::json::parse(ids.output.substr(ids.output.find("{\n")))["num_keyframes"], 2u);
+  EXPECT_EQ(nlohmann::json::parse(ids.output)["num_keyframes"], 2u);
   for (const std::string& bad :
        {"--partition 3/3", "--partition 1", "--partition a/2", "--keyframes 2,x", "--keyframes 99",
         "--partition 0/2 --keyframes 1"}) {
@@ -928,11 +909,9 @@ TEST_F(CliTest, PathsOfAnyBytesGiveValidJsonAndEscapedText) {
   EXPECT_EQ(j["ranked"][0]["source"], j["query"]);
   // To stdout too, and the manifest (whose source names the folder).
   const CommandResult to_stdout =
-      Placedb("query --db " + db + " --image '" + folder + "/img\xe9_001.jpg' --json -");
+      PlacedbStdout("query --db " + db + " --image '" + folder + "/img\xe9_001.jpg' --json -");
   ASSERT_EQ(to_stdout.code, 0) << to_stdout.output;
-  const size_t brace = to_stdout.output.find("\n{");
-  ASSERT_NE(brace, std::string::npos) << to_stdout.output;
-  EXPECT_NO_THROW(nlohmann::json::parse(to_stdout.output.substr(brace + 1)));
+  EXPECT_NO_THROW(nlohmann::json::parse(to_stdout.output));
   const CommandResult info = Placedb("info --db " + db + " --json");
   ASSERT_EQ(info.code, 0) << info.output;
   EXPECT_EQ(nlohmann::json::parse(info.output)["source"], "images:" + Path("caf\xef\xbf\xbd"));

@@ -27,6 +27,7 @@ int main(int argc, char** argv) {
 
   namespace cli = placedb::cli;
   CLI::App app{"placedb: visual place recognition against a compact keyframe database"};
+  app.formatter(cli::HelpFormatter());
   app.require_subcommand(1);
   app.set_version_flag("--version", std::string("placedb ") + placedb::kPlacedbVersion);
   bool verbose = false;
@@ -66,7 +67,12 @@ int main(int argc, char** argv) {
   if (verbose) spdlog::set_level(spdlog::level::debug);
   try {
     for (const auto& [sub, command] : table) {
-      if (sub->parsed()) return command->Run();
+      if (!sub->parsed()) continue;
+      // `--json -` (or a path that is stdout): stdout carries the JSON alone.
+      const CLI::Option* json = sub->get_option_no_throw("--json");
+      if (json != nullptr && json->count() == 1 && json->get_expected_min() > 0)
+        cli::ReserveStdoutForJson(json->results().front());
+      return command->Run();
     }
     std::fprintf(stderr, "placedb: error: no sub-command given (see placedb --help)\n");
     return cli::kExitInput;

@@ -30,6 +30,10 @@ class QueryCommand : public Command {
                     "write a PNG of the query beside its best keyframe (the best ranked when "
                     "there is no match), the matches joined by lines: verified green, others "
                     "amber");
+    cmd->footer(
+        "Examples:\n"
+        "  placedb query --db office.db --image data/rtabmap_loop/images/042.jpg\n"
+        "  placedb query --db office.db --image data/rtabmap_loop/images/042.jpg --json - | python3 -m json.tool\n");
     return cmd;
   }
 

@@ -51,9 +51,6 @@ std::string ReadFileToString(const std::string& path) {
   return out;
 }
 
-namespace {
-
-// Writes all of `data` to `fd`; false with errno set on an error.
 bool WriteAll(int fd, const char* data, size_t size) {
   size_t written = 0;
   while (written < size) {
@@ -66,6 +63,8 @@ bool WriteAll(int fd, const char* data, size_t size) {
   }
   return true;
 }
+
+namespace {
 
 // What is at `path` now: nothing (a new path), a regular file, a directory,
 // or something a crash-safe replace must not touch (a symlink, a device, a

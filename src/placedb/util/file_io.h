@@ -33,6 +33,10 @@ namespace internal {
   ::placedb::internal::ThrowReadError((err), ::placedb::internal::JoinMessage(__VA_ARGS__), \
                                       ::placedb::internal::SourceLocation(__FILE__, __LINE__))
 
+// Writes all of `data` to the open descriptor `fd`, retrying short writes
+// and EINTR; false with errno set on an error.
+bool WriteAll(int fd, const char* data, size_t size);
+
 // Writes `data` to `path` so that a crash leaves either the old file or the new
 // one, never a torn file: write to a temporary sibling (TempPathFor), fsync,
 // rename, fsync the directory. The temporary file is removed on any error.
