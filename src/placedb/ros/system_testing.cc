@@ -7,8 +7,11 @@
 #include <std_msgs/Header.h>
 #include <xmlrpcpp/XmlRpcClient.h>
 
+#include <algorithm>
 #include <chrono>
+#include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <iterator>
 #include <thread>
 
@@ -21,6 +24,7 @@ namespace placedb {
 namespace ros_testing {
 namespace {
 
+namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
 std::string FileText(const std::string& path) {
@@ -227,11 +231,18 @@ void RunKillDrill(const KillDrill& d) {
     const std::vector<nlohmann::json> answers = WrittenLines(file);
     ASSERT_EQ(answers.size(), frame_of.size()) << "every frame is answered once";
     std::set<uint64_t> seqs;
+    size_t partial = 0;
+    double least_wait = 1e300, most_wait = 0;
     for (const nlohmann::json& a : answers) {
       const uint64_t seq = a["frame_seq"];
       ASSERT_LT(seq, frame_of.size());
       EXPECT_TRUE(seqs.insert(seq).second) << "answered twice: " << seq;
       const bool complete = a["complete"].get<bool>();
+      if (!complete) {
+        ++partial;
+        least_wait = std::min(least_wait, a["wait_ms"].get<double>());
+        most_wait = std::max(most_wait, a["wait_ms"].get<double>());
+      }
       if (without.count(seq)) {
         EXPECT_FALSE(complete) << a.dump();
         for (const int k : d.killed) {
@@ -248,6 +259,11 @@ void RunKillDrill(const KillDrill& d) {
       // A complete answer, from either voter, is the single-process query's.
       if (complete) ExpectSameAnswer(a, expected[frame_of[seq]], "frame " + std::to_string(seq));
     }
+    std::cout << "[   drill  ] " << fs::path(file).filename().string() << ": " << answers.size()
+              << " answers, " << partial << " partial (" << without.size()
+              << " sent without the killed workers)";
+    if (partial > 0) std::cout << ", partial ones waited " << least_wait << " to " << most_wait << " ms";
+    std::cout << "\n";
   }
 }
 
