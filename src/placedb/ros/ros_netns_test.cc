@@ -50,8 +50,8 @@ using ros_testing::WaitUntil;
 
 const std::string kImages = PLACEDB_DATA_DIR "/rtabmap_loop/images";
 const std::string kNodes = std::string(PLACEDB_ROS_TREE) + "/lib/placedb/";
-const std::string kNetnsDir = "/run/netns";  // where `ip netns add` names them
-const std::string kPrefix = "placedb-";      // then <pid>-<host>
+const std::string kNetnsDir = "/var/run/netns";  // where `ip netns add` names them
+const std::string kPrefix = "placedb-";  // then <pid>-<host>
 
 // The `ip` of iproute2: on the PATH, or where Debian puts it (a PATH
 // without the sbin folders is common for tests).
@@ -114,6 +114,9 @@ class Hosts {
       steps.push_back({"-n", ns, "addr", "add", h.ip + "/24", "dev", "veth0"});
       steps.push_back({"-n", ns, "link", "set", "veth0", "up"});
     }
+    // Last, what every node's start does (it needs to mount /sys, which a
+    // container may refuse).
+    steps.push_back({"netns", "exec", Netns("m"), "true"});
     for (const std::vector<std::string>& step : steps) {
       if (Ip(step) != 0) {
         std::string line = "ip";
