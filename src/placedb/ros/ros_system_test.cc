@@ -17,7 +17,6 @@
 //   never by how long anything took.
 #include <gtest/gtest.h>
 #include <placedb_msgs/PartialResult.h>
-#include <ros/network.h>
 #include <ros/callback_queue.h>
 #include <ros/ros.h>
 #include <rosbag/bag.h>
@@ -27,7 +26,6 @@
 #include <sys/wait.h>
 #include <tf2_msgs/TFMessage.h>
 #include <unistd.h>
-#include <xmlrpcpp/XmlRpcClient.h>
 
 #include <chrono>
 #include <cstdlib>
@@ -35,11 +33,8 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
-#include <iterator>
-#include <map>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
-#include <set>
 #include <thread>
 
 #include "placedb/dataset/image_folder.h"
@@ -56,12 +51,11 @@
 namespace placedb {
 namespace {
 namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
 
 const std::string kImages = PLACEDB_DATA_DIR "/rtabmap_loop/images";
 const std::string kNodes = std::string(PLACEDB_ROS_TREE) + "/lib/placedb/";
+// What the system tests share (system_testing.h).
 using ros_testing::ExpectSameAnswer;
-using ros_testing::kLimit;
 using ros_testing::kNoDeadline;
 using ros_testing::kRunLimit;
 using ros_testing::OpenGate;
@@ -69,7 +63,6 @@ using ros_testing::WaitLines;
 using ros_testing::WaitLinked;
 using ros_testing::WaitUntil;
 using ros_testing::WrittenLines;
-
 
 // The master, shared by all tests, and this process as a ROS node (to send
 // hostile messages); each test's nodes run in their own namespace.
