@@ -236,6 +236,7 @@ class RosAcrossHostsTest : public ::testing::Test {
     ASSERT_TRUE(WaitUntil([] { return ros::master::check(); }))
         << "rosmaster did not start on " << hosts_->host("m").ip << ":" << ros_->port() << "\n"
         << ros_->ReadLog("master.log");
+    ready_ = true;
   }
   static void TearDownTestSuite() {
     if (ros_ != nullptr) {
@@ -256,6 +257,7 @@ class RosAcrossHostsTest : public ::testing::Test {
   }
   void SetUp() override {
     if (!skip_->empty()) GTEST_SKIP() << "network namespaces cannot be made: " << *skip_;
+    ASSERT_TRUE(ready_) << "the hosts, the master or the database did not come up (above)";
   }
   void TearDown() override {
     if (ros_ != nullptr) ros_->StopNodes();
@@ -287,12 +289,14 @@ class RosAcrossHostsTest : public ::testing::Test {
   static std::string* skip_;
   static LoopbackRos* ros_;
   static int home_netns_;
+  static bool ready_;
 };
 fs::path* RosAcrossHostsTest::dir_ = nullptr;
 Hosts* RosAcrossHostsTest::hosts_ = nullptr;
 std::string* RosAcrossHostsTest::skip_ = nullptr;
 LoopbackRos* RosAcrossHostsTest::ros_ = nullptr;
 int RosAcrossHostsTest::home_netns_ = -1;
+bool RosAcrossHostsTest::ready_ = false;
 
 // The feed and the voter on host m, workers 0 and 1 on host a and 2 and 3 on
 // host b (interleaved, pinned): every node registers its host's address, and
