@@ -17,7 +17,6 @@
 //   never by how long anything took.
 #include <gtest/gtest.h>
 #include <placedb_msgs/PartialResult.h>
-#include <ros/network.h>
 #include <ros/callback_queue.h>
 #include <ros/ros.h>
 #include <rosbag/bag.h>
@@ -27,7 +26,6 @@
 #include <sys/wait.h>
 #include <tf2_msgs/TFMessage.h>
 #include <unistd.h>
-#include <xmlrpcpp/XmlRpcClient.h>
 
 #include <chrono>
 #include <cstdlib>
@@ -35,11 +33,8 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
-#include <iterator>
-#include <map>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
-#include <set>
 #include <thread>
 
 #include "placedb/dataset/image_folder.h"
@@ -48,6 +43,7 @@
 #include "placedb/dataset/bag/image_message.h"
 #include "placedb/ros/messages.h"
 #include "placedb/query/query.h"
+#include "placedb/ros/system_testing.h"
 #include "placedb/ros/testbed.h"
 #include "placedb/util/file_io.h"
 #include "placedb/util/testing.h"
@@ -55,29 +51,18 @@
 namespace placedb {
 namespace {
 namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
 
 const std::string kImages = PLACEDB_DATA_DIR "/rtabmap_loop/images";
 const std::string kNodes = std::string(PLACEDB_ROS_TREE) + "/lib/placedb/";
-// Seconds: the limit of every wait for an event (a node up and linked, an
-// answer written). Generous: it only ends a hang.
-constexpr double kLimit = 300;
-// Seconds for a feed to publish all its frames, each answered.
-constexpr double kRunLimit = 600;
-// Milliseconds: a voter deadline (and a feed's answer timeout) no answer
-// reaches: the voter answers when every partition has, however slow.
-const std::string kNoDeadline = "600000";
-
-// Waits until done() is true, polling; false when `seconds` pass first.
-bool WaitUntil(const std::function<bool()>& done, double seconds = kLimit) {
-  const auto until = Clock::now() + std::chrono::duration<double>(seconds);
-  while (!done()) {
-    if (Clock::now() >= until) return false;
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
-  return true;
-}
-
+// What the system tests share (system_testing.h).
+using ros_testing::ExpectSameAnswer;
+using ros_testing::kNoDeadline;
+using ros_testing::kRunLimit;
+using ros_testing::OpenGate;
+using ros_testing::WaitLines;
+using ros_testing::WaitLinked;
+using ros_testing::WaitUntil;
+using ros_testing::WrittenLines;
 
 // The master, shared by all tests, and this process as a ROS node (to send
 // hostile messages); each test's nodes run in their own namespace.
@@ -116,88 +101,9 @@ class RosSystemTest : public ::testing::Test {
   static int WaitExit(pid_t pid, double seconds) { return LoopbackRos::WaitExit(pid, seconds); }
   static bool Alive(pid_t pid) { return LoopbackRos::Alive(pid); }
   static std::string ReadLog(const std::string& log) { return ros_->ReadLog(log); }
-  // Whether node `publisher` (a full name, or this process) has a live link
-  // on `topic` to node `subscriber`, as the publisher reports it (its
-  // getBusInfo): what it publishes from then on reaches the subscriber. A
-  // subscriber's own view is not enough: it lists a link before the
-  // publisher has accepted it.
-  static bool Linked(const std::string& publisher, const std::string& topic,
-                     const std::string& subscriber) {
-    XmlRpc::XmlRpcValue args, result, payload;
-    args[0] = ros::this_node::getName();
-    args[1] = publisher;
-    if (!ros::master::execute("lookupNode", args, result, payload, false)) return false;
-    std::string host;
-    uint32_t port = 0;
-    if (!ros::network::splitURI(std::string(payload), host, port)) return false;
-    XmlRpc::XmlRpcClient client(host.c_str(), static_cast<int>(port), "/");
-    XmlRpc::XmlRpcValue call, info;
-    call[0] = ros::this_node::getName();
-    const bool answered = client.execute("getBusInfo", call, info);
-    client.close();
-    if (!answered || info.getType() != XmlRpc::XmlRpcValue::TypeArray || info.size() < 3 ||
-        info[2].getType() != XmlRpc::XmlRpcValue::TypeArray)
-      return false;
-    // Each link: [id, the other node, "o" (we publish) or "i", transport, topic, ...].
-    for (int i = 0; i < info[2].size(); ++i) {
-      XmlRpc::XmlRpcValue& link = info[2][i];
-      if (link.getType() == XmlRpc::XmlRpcValue::TypeArray && link.size() >= 5 &&
-          std::string(link[1]) == subscriber && std::string(link[2]) == "o" &&
-          std::string(link[4]) == topic)
-        return true;
-    }
-    return false;
-  }
-  // Waits (kLimit) until every publisher -> subscriber link on `topic` is up.
-  static ::testing::AssertionResult WaitLinked(const std::vector<std::string>& publishers,
-                                               const std::string& topic,
-                                               const std::vector<std::string>& subscribers) {
-    for (const std::string& p : publishers) {
-      for (const std::string& s : subscribers) {
-        if (!WaitUntil([&] { return Linked(p, topic, s); }))
-          return ::testing::AssertionFailure()
-                 << p << " has no link to " << s << " on " << topic << " after " << kLimit << " s";
-      }
-    }
-    return ::testing::AssertionSuccess();
-  }
-  // The lines a node has finished writing to a JSON-lines file (not one it
-  // is still writing).
-  static std::vector<nlohmann::json> WrittenLines(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    std::vector<nlohmann::json> out;
-    for (size_t at = 0, end; (end = text.find('\n', at)) != std::string::npos; at = end + 1) {
-      if (end > at) out.push_back(nlohmann::json::parse(text.substr(at, end - at)));
-    }
-    return out;
-  }
-  // Waits (kLimit) until the JSON-lines file holds at least `count` lines;
-  // returns them.
-  static std::vector<nlohmann::json> WaitLines(const std::string& path, size_t count) {
-    std::vector<nlohmann::json> lines;
-    WaitUntil([&] {
-      lines = WrittenLines(path);
-      return lines.size() >= count;
-    });
-    return lines;
-  }
-  // The gate: this process subscribes to `ns`/image, the last subscriber a
-  // feed started with --wait-for (the system's subscribers + 1) waits for.
-  static ros::Subscriber OpenGate(const std::string& ns) {
-    ros::NodeHandle nh;
-    return nh.subscribe<sensor_msgs::Image>(
-        ns + "/image", 1, [](const sensor_msgs::ImageConstPtr&) {}, ros::VoidConstPtr(),
-        ros::TransportHints());
-  }
-
   // What the single-process query answers for frames 41..84.
   static std::vector<QueryResult> SingleProcess(const QueryOptions& options) {
-    const PlaceDatabase db = PlaceDatabase::Open(Db());
-    std::vector<QueryResult> out;
-    for (const Frame& f : ListImageFolder(kImages, 41, 84))
-      out.push_back(db.Query(LoadFrameImage(f), options));
-    return out;
+    return ros_testing::SingleProcess(Db(), kImages, 41, 84, options);
   }
 
   static fs::path* dir_;
@@ -205,18 +111,6 @@ class RosSystemTest : public ::testing::Test {
 };
 fs::path* RosSystemTest::dir_ = nullptr;
 LoopbackRos* RosSystemTest::ros_ = nullptr;
-
-void ExpectSameAnswer(const nlohmann::json& line, const QueryResult& expected,
-                      const std::string& what) {
-  const QueryResult got = line["result"].get<QueryResult>();
-  ASSERT_EQ(got.ranked.size(), expected.ranked.size()) << what;
-  for (size_t i = 0; i < got.ranked.size(); ++i) {
-    EXPECT_EQ(got.ranked[i].keyframe_id, expected.ranked[i].keyframe_id) << what << " rank " << i;
-    EXPECT_EQ(got.ranked[i].score, expected.ranked[i].score) << what << " rank " << i;
-    EXPECT_EQ(got.ranked[i].num_matches, expected.ranked[i].num_matches) << what << " rank " << i;
-  }
-  EXPECT_EQ(got.matched, expected.matched) << what;
-}
 
 // Feed + 3 workers (interleaved partitions, pinned round-robin to the CPUs)
 // + voter: every frame's answer is complete and equals the single-process
@@ -311,133 +205,27 @@ TEST_F(RosSystemTest, WorkersOnExtractedFeatures) {
   }
 }
 
-// A worker killed (SIGKILL) does not stop the system: frames are answered
-// without it, flagged partial and naming its partition; restarted, it rejoins
-// and answers are complete again. This process plays the feed (one frame at a
-// time, each the next once it is answered), and two voters watch the same
-// frames:
-// - the patient one (no deadline in reach, --max-pending 1) answers a frame
-//   when every partition has, or when the next frame comes;
-// - the deadline one (--deadline-ms 300) answers each frame at its deadline at
-//   the latest: the path a real system takes when a worker is gone.
-// Nothing depends on how fast anything runs: with every worker linked, a
-// frame's patient answer is complete (it waits for all three); with worker 1
-// dead (reaped) no partial of partition 1 can exist, so every answer of that
-// phase, from either voter, names it missing; the deadline voter, which
-// neither evicts nor completes those frames, answered them by the deadline
-// (waited at least 300 ms by its own clock).
+// A worker killed (SIGKILL) is answered around and rejoins: the drill of
+// ros_testing::RunKillDrill, worker 1 of 3 killed.
 TEST_F(RosSystemTest, AKilledWorkerIsAnsweredAroundAndRejoins) {
   const std::string ns = "/faults";
-  const std::string patient_file = Path("faults_patient.jsonl");
-  const std::string deadline_file = Path("faults_deadline.jsonl");
-  const double deadline_ms = 300;
-  const std::string voter = ns + "/placedb_voter", deadline_voter = ns + "/placedb_voter_deadline";
-  Start({"placedb_voter", "--db", Db(), "--partitions", "3", "--deadline-ms", kNoDeadline,
-         "--max-pending", "1", "--answers-file", patient_file},
-        "faults_voter.log", ns);
-  Start({"placedb_voter", "--db", Db(), "--partitions", "3", "--deadline-ms", "300",
-         "--answers-file", deadline_file, "__name:=placedb_voter_deadline",
-         "answers:=answers_deadline", "pose:=pose_deadline"},
-        "faults_voter_deadline.log", ns);
-  auto worker = [&](int i, const std::string& name) {
+  ros_testing::KillDrill drill;
+  drill.ns = ns;
+  drill.db = Db();
+  drill.images = kImages;
+  drill.files = Path("faults_");
+  drill.partitions = 3;
+  drill.killed = {1};
+  drill.start_voter = [&](const std::vector<std::string>& args, const std::string& name) {
+    return Start(args, "faults_" + name + ".log", ns);
+  };
+  drill.start_worker = [&](int i, const std::string& name) {
     return Start({"placedb_worker", "--db", Db(), "--partition", std::to_string(i) + "/3",
                   "__name:=" + name},
                  "faults_" + name + ".log", ns);
   };
-  std::vector<pid_t> workers;
-  for (int i = 0; i < 3; ++i) workers.push_back(worker(i, "placedb_worker_" + std::to_string(i)));
-  ros::NodeHandle nh(ns);
-  ros::Publisher frames = nh.advertise<std_msgs::Header>("frames", 100);
-  ros::Publisher images = nh.advertise<sensor_msgs::Image>("image", 100);
-  const std::string me = ros::this_node::getName();
-  // Every link a frame travels: this process -> voters (frames) and workers
-  // (image), workers -> voters (partial results).
-  auto linked = [&](const std::vector<std::string>& names) {
-    return WaitLinked({me}, ns + "/frames", {voter, deadline_voter}) &&
-           WaitLinked({me}, ns + "/image", names) &&
-           WaitLinked(names, ns + "/partial_results", {voter, deadline_voter});
-  };
-  ASSERT_TRUE(linked({ns + "/placedb_worker_0", ns + "/placedb_worker_1", ns + "/placedb_worker_2"}))
-      << ReadLog("faults_voter.log") << ReadLog("faults_placedb_worker_1.log");
-
-  // One frame: its announcement, then its image, both numbered from 0 (the
-  // image by roscpp, which numbers a message's header per publisher; the
-  // announcement, a bare Header that roscpp leaves alone, here).
-  const std::vector<Frame> list = ListImageFolder(kImages, 41, 84);
-  std::vector<size_t> frame_of;  // list index by frame_seq
-  std::set<uint64_t> without_1;  // frames sent while worker 1 was dead
-  auto send = [&](size_t index) {
-    std_msgs::Header h;
-    h.seq = static_cast<uint32_t>(frame_of.size());
-    h.stamp = ros::Time(1000.0 + static_cast<double>(frame_of.size()));
-    frames.publish(h);
-    images.publish(BgrToImageMessage(LoadFrameImage(list[index]), h));
-    frame_of.push_back(index);
-  };
-  auto lines = [&](const std::string& file, size_t n) { return WaitLines(file, n).size(); };
-
-  // All three workers: each frame waits for both voters' answers.
-  for (size_t i = 0; i < 6; ++i) {
-    send(i);
-    ASSERT_EQ(lines(patient_file, frame_of.size()), frame_of.size()) << ReadLog("faults_voter.log") << ReadLog("faults_patient.jsonl");
-    ASSERT_EQ(lines(deadline_file, frame_of.size()), frame_of.size())
-        << ReadLog("faults_voter_deadline.log") << ReadLog("faults_deadline.jsonl");
-  }
-  // Worker 1 killed and reaped: partition 1 can no longer answer anything.
-  ASSERT_EQ(::kill(workers[1], SIGKILL), 0);
-  ASSERT_EQ(WaitExit(workers[1], kLimit), 128);
-  for (size_t i = 6; i < 11; ++i) {
-    without_1.insert(frame_of.size());
-    send(i);
-    // The deadline voter answers it by its deadline; the patient one answers
-    // the previous frame now that this one came.
-    ASSERT_EQ(lines(deadline_file, frame_of.size()), frame_of.size())
-        << ReadLog("faults_voter_deadline.log") << ReadLog("faults_deadline.jsonl");
-    ASSERT_EQ(lines(patient_file, frame_of.size() - 1), frame_of.size() - 1)
-        << ReadLog("faults_voter.log") << ReadLog("faults_patient.jsonl");
-  }
-  // Restarted (under a new node name, so that its links cannot be mistaken
-  // for the dead one's) and linked: it rejoins.
-  const std::string again = "placedb_worker_1_again";
-  worker(1, again);
-  ASSERT_TRUE(linked({ns + "/" + again})) << ReadLog("faults_" + again + ".log");
-  for (size_t i = 11; i < 17; ++i) {
-    send(i);
-    ASSERT_EQ(lines(patient_file, frame_of.size()), frame_of.size()) << ReadLog("faults_voter.log") << ReadLog("faults_patient.jsonl");
-    ASSERT_EQ(lines(deadline_file, frame_of.size()), frame_of.size())
-        << ReadLog("faults_voter_deadline.log") << ReadLog("faults_deadline.jsonl");
-  }
-
-  const std::vector<QueryResult> expected = SingleProcess(QueryOptions());
-  auto has = [](const nlohmann::json& list, int partition) {
-    for (const nlohmann::json& p : list) {
-      if (p.get<int>() == partition) return true;
-    }
-    return false;
-  };
-  for (const std::string& file : {patient_file, deadline_file}) {
-    SCOPED_TRACE(file);
-    const std::vector<nlohmann::json> answers = WrittenLines(file);
-    ASSERT_EQ(answers.size(), frame_of.size()) << "every frame is answered once";
-    std::set<uint64_t> seqs;
-    for (const nlohmann::json& a : answers) {
-      const uint64_t seq = a["frame_seq"];
-      ASSERT_LT(seq, frame_of.size());
-      EXPECT_TRUE(seqs.insert(seq).second) << "answered twice: " << seq;
-      const bool complete = a["complete"].get<bool>();
-      if (without_1.count(seq)) {
-        EXPECT_FALSE(complete) << a.dump();
-        EXPECT_TRUE(has(a["missing"], 1)) << a.dump();
-        EXPECT_FALSE(has(a["answered"], 1)) << a.dump();
-        // Neither complete nor evicted: answered by the deadline.
-        if (file == deadline_file) EXPECT_GE(a["wait_ms"].get<double>(), deadline_ms) << a.dump();
-      } else if (file == patient_file) {
-        EXPECT_TRUE(complete) << a.dump();  // with worker 1 before the kill, or restarted
-      }
-      // A complete answer, from either voter, is the single-process query's.
-      if (complete) ExpectSameAnswer(a, expected[frame_of[seq]], "frame " + std::to_string(seq));
-    }
-  }
+  drill.read_log = [](const std::string& name) { return ReadLog("faults_" + name + ".log"); };
+  ros_testing::RunKillDrill(drill);
 }
 
 // Malformed messages are dropped and logged once per cause; the nodes live

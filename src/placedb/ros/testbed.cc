@@ -37,13 +37,14 @@ int LoopbackRos::FreeLoopbackPort() {
   return ntohs(addr.sin_port);
 }
 
-LoopbackRos::LoopbackRos(std::string dir, std::string nodes_dir)
-    : dir_(std::move(dir)), nodes_dir_(std::move(nodes_dir)) {
+LoopbackRos::LoopbackRos(std::string dir, std::string nodes_dir, RosHost master)
+    : dir_(std::move(dir)), nodes_dir_(std::move(nodes_dir)), master_host_(std::move(master)) {
   fs::create_directories(fs::path(dir_) / "ros_home" / "log");
+  // Free here; in a namespace of the test's own, every port is.
   port_ = FreeLoopbackPort();
-  const std::string uri = "http://127.0.0.1:" + std::to_string(port_);
+  const std::string uri = "http://" + master_host_.ip + ":" + std::to_string(port_);
   ::setenv("ROS_MASTER_URI", uri.c_str(), 1);
-  ::setenv("ROS_IP", "127.0.0.1", 1);
+  ::setenv("ROS_IP", master_host_.ip.c_str(), 1);
   ::unsetenv("ROS_HOSTNAME");
   ::setenv("ROS_HOME", (fs::path(dir_) / "ros_home").c_str(), 1);
   ::setenv("ROS_LOG_DIR", (fs::path(dir_) / "ros_home" / "log").c_str(), 1);
@@ -57,14 +58,17 @@ LoopbackRos::~LoopbackRos() {
 }
 
 pid_t LoopbackRos::Start(std::vector<std::string> args, const std::string& log,
-                         const std::string& ns) {
+                         const std::string& ns, const std::optional<RosHost>& on) {
+  const RosHost& host = on ? *on : master_host_;
   const std::string local = (fs::path(nodes_dir_) / args[0]).string();
   if (fs::exists(local)) args[0] = local;
+  if (!host.netns.empty()) args.insert(args.begin(), {"ip", "netns", "exec", host.netns});
   const std::string out = (fs::path(dir_) / log).string();
   const pid_t pid = ::fork();
   if (pid < 0) PLACEDB_THROW_IO("cannot start ", args[0], ": ", std::strerror(errno));
   if (pid == 0) {
     if (!ns.empty()) ::setenv("ROS_NAMESPACE", ns.c_str(), 1);
+    ::setenv("ROS_IP", host.ip.c_str(), 1);
     const int fd = ::open(out.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
     if (fd >= 0) {
       ::dup2(fd, 1);
