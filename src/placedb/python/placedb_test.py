@@ -462,6 +462,16 @@ class PlaceDbTest(unittest.TestCase):
                                       verify=False, top_k=2)
         self.assertFalse(unverified["verified"])
         self.assertTrue(all(len(q["result"]["ranked"]) <= 2 for q in unverified["queries"]))
+        self.assertEqual(rep["doubts"], [])
+        # The database's own frames as queries: said so, refused with strict.
+        own = os.path.join(self.tmp, "own_truth.csv")
+        with open(own, "w") as f:
+            f.write("5,4 5 6\n6,5 6 7\n")
+        doubted = placedb.evaluate(self.db, images=IMAGES, truth=own, all=True)
+        self.assertEqual(len(doubted["doubts"]), 1)
+        self.assertIn("query frames are database frames", doubted["doubts"][0])
+        with self.assertRaisesRegex(placedb.InvalidArgumentError, r"refused \(strict\)"):
+            placedb.evaluate(self.db, images=IMAGES, truth=own, all=True, strict=True)
         with self.assertRaises(ValueError):
             placedb.evaluate(self.db, images=IMAGES)  # no truth for an image folder
         with self.assertRaises(ValueError):
