@@ -10,6 +10,7 @@ import json
 import os
 import shutil
 import subprocess
+import sys
 import tempfile
 import threading
 import unittest
@@ -346,13 +347,24 @@ class PlaceDbTest(unittest.TestCase):
                     placedb.build(out, images=IMAGES, **kwargs)
         with self.assertRaises(ValueError):
             placedb.build(out)  # no frames
-        with self.assertRaises(ValueError):
-            placedb.build(self.db_dir, images=IMAGES, last=2)  # exists, no overwrite
+        # Exists, no overwrite: the message names the keyword, not a flag.
+        with self.assertRaisesRegex(ValueError, r"overwrite") as exists:
+            placedb.build(self.db_dir, images=IMAGES, last=2)
+        self.assertNotIn("--", str(exists.exception))
         with self.assertRaises(TypeError):
             placedb.build(out, images=IMAGES, no_such_setting=1)
         self.assertFalse(os.path.exists(out))
-        with self.assertRaises(FileNotFoundError):
+        with self.assertRaisesRegex(FileNotFoundError, r"missing\.png does not exist$"):
             placedb.read_image(os.path.join(self.tmp, "missing.png"))
+        # ... and nothing else: no OpenCV warning on stderr.
+        run = subprocess.run(
+            [sys.executable, "-c", "import placedb\n"
+             "try:\n placedb.read_image('/nonexistent/x.png')\n"
+             "except FileNotFoundError as e:\n print(e)"],
+            capture_output=True, text=True, env=dict(os.environ))
+        self.assertEqual(run.returncode, 0, run.stderr)
+        self.assertEqual(run.stdout.strip(), "image /nonexistent/x.png does not exist")
+        self.assertEqual(run.stderr, "")
         not_an_image = os.path.join(self.tmp, "not_an_image.png")
         with open(not_an_image, "w") as f:
             f.write("text")
