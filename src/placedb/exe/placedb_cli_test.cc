@@ -641,7 +641,7 @@ TEST_F(CliTest, SearchModesDeadlinesAndOnlineChanges) {
   const CommandResult again =
       Placedb("add --db " + db + " --images " + kImages + " --first 40 --last 41 --quiet");
   EXPECT_EQ(again.code, 1);
-  EXPECT_TRUE(Contains(again.output, "already a keyframe")) << again.output;
+  EXPECT_TRUE(Contains(again.output, "is already keyframe 40 of")) << again.output;
   EXPECT_EQ(Placedb("add --db " + db + " --images " + kImages +
                     " --first 40 --last 41 --skip-existing --quiet")
                 .code,
