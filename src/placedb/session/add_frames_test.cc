@@ -213,6 +213,31 @@ TEST_F(AddFramesTest, DatabasesWithoutHashesFallBackToThePath) {
   EXPECT_EQ(ids.next_free, 13);
 }
 
+// The manifest's "ids" entry is read strictly: a damaged one is a corrupt
+// database, named; a next_free below the largest id is overruled by it.
+TEST_F(AddFramesTest, DamagedIdsEntriesAreCorruptDatabases) {
+  const std::string path = Dir() + "/manifest.json";
+  const nlohmann::json manifest = nlohmann::json::parse(ReadFileToString(path));
+  for (const nlohmann::json& bad :
+       {nlohmann::json("x"), nlohmann::json{{"next_free", "12"}, {"removed", 0},
+                                            {"removed_since", ""}},
+        nlohmann::json{{"next_free", 0}, {"removed", 0}, {"removed_since", ""}},
+        nlohmann::json{{"next_free", 4294967296}, {"removed", 0}, {"removed_since", ""}},
+        nlohmann::json{{"next_free", 12}, {"removed", -1}, {"removed_since", ""}},
+        nlohmann::json{{"next_free", 12}, {"removed", 1.5}, {"removed_since", ""}},
+        nlohmann::json{{"next_free", 12}, {"removed", 0}}}) {
+    nlohmann::json m = manifest;
+    m["ids"] = bad;
+    WriteFileAtomic(path, m.dump());
+    EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { PlaceDatabase::Open(Dir()); }, "ids"))
+        << bad.dump();
+  }
+  nlohmann::json m = manifest;
+  m["ids"]["next_free"] = 2;
+  WriteFileAtomic(path, m.dump());
+  EXPECT_EQ(PlaceDatabase::Open(Dir()).id_summary().next_free, 11);
+}
+
 // id_offset: the k-th frame given gets offset + k - 1; ids_from_names: the
 // file name's number. Taken, repeated or impossible ids and names that are
 // not numbers are refused before anything changes.
