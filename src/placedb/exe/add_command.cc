@@ -35,7 +35,7 @@ class AddCommand : public Command {
   int Run() override {
     PlaceDatabase db = db_.Open();
     const AddReport r = db.AddFrames(source_.Read(), options_, !quiet_);
-    db.Save();
+    if (db.num_pending_changes() > 0) db.Save();  // nothing added: the files stay as they are
     if (r.added == 0) {
       fmt::print("added         0 keyframes\n");
     } else if (r.added == 1) {

@@ -999,6 +999,18 @@ TEST_F(CliTest, AddGivesNewFramesFreshIdsAndSkipsBySourceAndContent) {
   EXPECT_TRUE(Contains(changed.output, "new content   1 with the path of a keyframe but other "
                                        "content, added as new keyframes"))
       << changed.output;
+  // Nothing new: nothing is written (a save would replace the manifest by a
+  // new file, another inode).
+  struct stat before;
+  ASSERT_EQ(::stat((db + "/manifest.json").c_str(), &before), 0);
+  const CommandResult nothing =
+      Placedb("add --db " + db + " --images " + folder + " --skip-existing --quiet");
+  ASSERT_EQ(nothing.code, 0) << nothing.output;
+  EXPECT_TRUE(Contains(nothing.output, "added         0 keyframes")) << nothing.output;
+  EXPECT_TRUE(Contains(nothing.output, "skipped       6 already in the database")) << nothing.output;
+  struct stat after;
+  ASSERT_EQ(::stat((db + "/manifest.json").c_str(), &after), 0);
+  EXPECT_EQ(after.st_ino, before.st_ino);
   // Ids from names and from an offset; a name that is not a number is refused.
   const std::string named = Path("named");
   fs::create_directories(named);

@@ -40,7 +40,7 @@ class RemoveCommand : public Command {
     }
     size_t removed = 0;
     for (const int32_t id : ids_) removed += db.Remove(id);
-    db.Save();
+    if (db.num_pending_changes() > 0) db.Save();
     fmt::print("removed       {} keyframes\n", removed);
     const KeyframeIdSummary ids = db.id_summary();
     fmt::print("database      {} now has {} keyframes, ids {}..{}, next free id {}\n",
