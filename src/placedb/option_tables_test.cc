@@ -43,7 +43,7 @@ std::vector<TableCase> AllTables() {
           Case<BuildOptions>(),       Case<OpenOptions>(),      Case<ImageReadOptions>(),
           Case<TumOptions>(),         Case<FrameSourceOptions>(), Case<PoseThresholds>(),
           Case<GroundTruthOptions>(), Case<EvalOptions>(),      Case<BenchOptions>(),
-          Case<ExperimentOptions>(),  Case<VoteOptions>()};
+          Case<ExperimentOptions>(),  Case<VoteOptions>(),      Case<AddOptions>()};
 }
 
 // Every table of the library is one an entry point takes (the list `placedb

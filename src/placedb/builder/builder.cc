@@ -122,14 +122,18 @@ nlohmann::json BuildReportToJson(const BuildReport& r, const std::string& databa
           {"seconds", r.seconds}};
 }
 
-namespace {
-
 std::string NowIso8601() {
   const std::time_t now = std::time(nullptr);
   char buf[32];
   std::strftime(buf, sizeof(buf), "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&now));
   return buf;
 }
+
+nlohmann::json IdsEntry(int64_t next_free, uint64_t removed, const std::string& removed_since) {
+  return {{"next_free", next_free}, {"removed", removed}, {"removed_since", removed_since}};
+}
+
+namespace {
 
 bool LooksLikeDatabase(const fs::path& dir) {
   std::error_code ec;
@@ -309,13 +313,15 @@ BuildReport BuildDatabase(const std::vector<Frame>& frames, const BuildOptions& 
     ThreadPool pool(options.threads);
     pool.ParallelFor(frames.size(), [&](size_t i) {
       const Frame& frame = frames[i];
-      cv::Mat image = LoadFrameImage(frame);
+      uint64_t source_hash = 0;
+      cv::Mat image = LoadFrameImage(frame, &source_hash);
       if (image.empty()) {
         if (options.strict) ThrowUnreadableFrame(frame, "; `strict`");
         progress.Advance();
         return;
       }
       ProcessedFrame processed = ProcessFrame(frame, image, options, *extractor);
+      processed.keyframe.source_hash = source_hash;
       std::vector<uint8_t> buffer;
       cv::imencode(".png", image, buffer, png_params);
       full_png[i] = buffer.size();
@@ -363,6 +369,9 @@ BuildReport BuildDatabase(const std::vector<Frame>& frames, const BuildOptions& 
     info["settings"] = BuildSettingsToJson(options);
     info["source"] = source_description;
     info["created"] = NowIso8601();
+    int32_t largest_id = 0;
+    for (const Keyframe& k : db.keyframes()) largest_id = std::max(largest_id, k.id);
+    info["ids"] = IdsEntry(int64_t{largest_id} + 1, 0, info["created"].get<std::string>());
     info["placedb_version"] = kPlacedbVersion;
     info["counts"]["frames"] = report.num_frames;
     info["counts"]["skipped_images"] = report.num_skipped;

@@ -29,6 +29,17 @@ bool IsBowIndexFileName(const std::string& name);
 // The report as JSON (the database's path included).
 nlohmann::json BuildReportToJson(const BuildReport& report, const std::string& database);
 
+// The time now, "2026-12-03T11:40:09Z" (UTC).
+std::string NowIso8601();
+
+// The manifest's "ids" entry: `next_free`, the id after the largest a
+// keyframe of the database ever had (what `add` gives the next new frame by
+// default: ids of removed keyframes are not given again), and `removed`,
+// the keyframes removed since `removed_since` (the build, or the first save
+// by a placedb that counts removals). Manifests of earlier versions lack it
+// (session/place_database.cc reads them).
+nlohmann::json IdsEntry(int64_t next_free, uint64_t removed, const std::string& removed_since);
+
 // What one frame becomes: the stored image and its keyframe with features.
 struct ProcessedFrame {
   Keyframe keyframe;

@@ -413,6 +413,26 @@ TEST(BuilderTest, UnreadableImageIsSkippedOrFatalWhenStrict) {
   EXPECT_TRUE(BuildingLeftovers(tmp.Path()).empty());
 }
 
+// Each keyframe records its source's content (the hash `add --skip-existing`
+// compares), taken from the bytes decoded; the manifest records the next
+// free id and that nothing was removed yet.
+TEST(BuilderTest, KeyframesRecordTheirSourceHashAndTheManifestItsIds) {
+  TempDir tmp;
+  BuildDatabase(ListImageFolder(kImages, 3, 5), SmallBuild(), tmp.Path("db"), "rtabmap 3..5");
+  const Database db = Database::Load(tmp.Path("db"));
+  ASSERT_EQ(db.size(), 3u);
+  for (const Keyframe& k : db.keyframes()) {
+    const std::string bytes = ReadFileToString(k.source);
+    EXPECT_EQ(k.source_hash, SourceHash(bytes.data(), bytes.size())) << k.id;
+    EXPECT_NE(k.source_hash, 0u);
+  }
+  EXPECT_NE(db.keyframe(0).source_hash, db.keyframe(1).source_hash);
+  const nlohmann::json& ids = db.info()["ids"];
+  EXPECT_EQ(ids["next_free"], 6);
+  EXPECT_EQ(ids["removed"], 0);
+  EXPECT_EQ(ids["removed_since"], db.info()["created"]);
+}
+
 TEST(BuilderTest, ExistingDatabaseNeedsOverwrite) {
   TempDir tmp;
   const std::string out = tmp.Path("db");

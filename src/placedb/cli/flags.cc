@@ -104,6 +104,10 @@ void DatabaseArgs::Add(CLI::App* cmd, bool threads) {
   cmd->get_option("--keyframes")->excludes(cmd->get_option("--partition"));
 }
 
+void DatabaseArgs::AddDirectoryOnly(CLI::App* cmd) {
+  cmd->add_option("--db", dir, "database directory")->required();
+}
+
 PlaceDatabase DatabaseArgs::Open() const { return PlaceDatabase::Open(dir, open); }
 
 namespace {

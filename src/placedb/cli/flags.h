@@ -54,6 +54,10 @@ struct DatabaseArgs {
   OpenOptions open;
 
   void Add(CLI::App* cmd, bool threads = true);
+  // --db DIR alone: for commands that open the whole database to change or
+  // describe it (add, remove, info), where a subset, clusters or threads
+  // would do nothing.
+  void AddDirectoryOnly(CLI::App* cmd);
   PlaceDatabase Open() const;
 };
 

@@ -34,7 +34,8 @@ std::vector<BoundTable> BoundTables() {
 std::vector<const OptionTableBase*> AllOptionTables() {
   return {&FrameSourceOptions::Table(), &BuildOptions::Table(),       &OpenOptions::Table(),
           &QueryOptions::Table(),       &GroundTruthOptions::Table(), &EvalOptions::Table(),
-          &BenchOptions::Table(),       &ExperimentOptions::Table(),  &VoteOptions::Table()};
+          &BenchOptions::Table(),       &ExperimentOptions::Table(),  &VoteOptions::Table(),
+          &AddOptions::Table()};
 }
 
 std::string FlagOf(const std::string& name) {

@@ -13,6 +13,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "placedb/util/check.h"
+#include "placedb/util/checksum.h"
 #include "placedb/util/file_io.h"
 #include "placedb/util/options.h"
 
@@ -252,7 +253,26 @@ DecodedImage TryReadImageFile(const std::string& path, const ImageReadOptions& o
   }
   ::close(fd);
   if (!out.error.empty()) return out;
-  return DecodeImage(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size(), options, what);
+  DecodedImage d =
+      DecodeImage(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size(), options, what);
+  d.bytes_hash = SourceHash(bytes.data(), bytes.size());
+  return d;
+}
+
+uint64_t SourceHash(const void* data, size_t size) {
+  const uint64_t h = Checksum64(data, size);
+  return h == 0 ? 1 : h;
+}
+
+uint64_t SourceHashOfPixels(const cv::Mat& image) {
+  if (image.empty()) return 0;
+  Checksum64Stream sum;
+  const int32_t shape[4] = {image.rows, image.cols, image.type(), 0};
+  sum.Update(shape, sizeof(shape));
+  const size_t row_bytes = static_cast<size_t>(image.cols) * image.elemSize();
+  for (int r = 0; r < image.rows; ++r) sum.Update(image.ptr(r), row_bytes);
+  const uint64_t h = sum.Digest();
+  return h == 0 ? 1 : h;
 }
 
 void ThrowImageError(const DecodedImage& d, const std::string& message) {
@@ -273,7 +293,10 @@ cv::Mat ReadImageFile(const std::string& path, const ImageReadOptions& options) 
   return std::move(d.image);
 }
 
-cv::Mat LoadFrameImage(const Frame& frame) {
+cv::Mat LoadFrameImage(const Frame& frame) { return LoadFrameImage(frame, nullptr); }
+
+cv::Mat LoadFrameImage(const Frame& frame, uint64_t* source_hash) {
+  if (source_hash) *source_hash = 0;
   PLACEDB_CHECK_OPTIONS(frame.read);
   if (static_cast<int64_t>(frame.resize_to.width) * frame.resize_to.height >
       frame.read.max_pixels) {
@@ -284,10 +307,12 @@ cv::Mat LoadFrameImage(const Frame& frame) {
   cv::Mat image;
   if (frame.load) {
     image = frame.load();
+    if (source_hash) *source_hash = SourceHashOfPixels(image);
   } else {
     DecodedImage d = TryReadImageFile(frame.image_path, frame.read);
     if (d.too_large) PLACEDB_THROW_INVALID("frame ", frame.id, ": ", d.error);
     image = std::move(d.image);
+    if (source_hash && !image.empty()) *source_hash = d.bytes_hash;
   }
   if (image.empty() || frame.resize_to.empty() || image.size() == frame.resize_to) return image;
   const bool down = frame.resize_to.area() < image.size().area();

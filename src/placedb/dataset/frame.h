@@ -62,6 +62,9 @@ struct DecodedImage {
   // file cannot be read), else kInvalidArgument (not an image we decode, or
   // too large).
   ErrorKind kind = ErrorKind::kInvalidArgument;
+  // XXH3-64 of the bytes decoded (TryReadImageFile: the file's), as
+  // SourceHash gives it; 0 when nothing was read.
+  uint64_t bytes_hash = 0;
 };
 // Throws the error of `d` (d.error set) as its kind, with `message`
 // (d.error when empty).
@@ -101,6 +104,18 @@ struct Frame {
 // or resize_to is larger than that: the bound is never skipped over
 // silently.
 cv::Mat LoadFrameImage(const Frame& frame);
+
+// The same, also giving the frame's source hash (SourceHash): of the file's
+// bytes as read for decoding (one read), or of the decoded image for a
+// frame with `load` (a bag). *source_hash is 0 when the image is empty.
+cv::Mat LoadFrameImage(const Frame& frame, uint64_t* source_hash);
+
+// What a keyframe records of its source's content (Keyframe::source_hash):
+// XXH3-64 of an image file's bytes, never 0 (a hash of 0 becomes 1: 0 means
+// "not recorded"). For frames without a file, SourceHashOfPixels hashes the
+// decoded image (its size, type and pixel rows).
+uint64_t SourceHash(const void* data, size_t size);
+uint64_t SourceHashOfPixels(const cv::Mat& image);
 
 // For a frame LoadFrameImage could not read: throws NotFound when its image
 // file does not exist, else InvalidArgument ("cannot read image PATH (frame

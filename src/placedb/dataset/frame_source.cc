@@ -37,9 +37,9 @@ const OptionTable<FrameSourceOptions>& FrameSourceOptions::Table() {
     t.String("tum", PLACEDB_MEMBER(O, tum), "a TUM RGB-D folder (rgb.txt, groundtruth.txt)",
              kCallers);
     t.Number("first", PLACEDB_MEMBER(O, first), OptionRange::RightOpen(1, 2147483648.0),
-             "first frame id to use (1-based position in the listing)", kCallers);
+             "first frame to use, its 1-based position in the listing (build: also its id)", kCallers);
     t.Number("last", PLACEDB_MEMBER(O, last), OptionRange::RightOpen(0, 2147483648.0),
-             "last frame id to use (0: to the end)", kCallers);
+             "last frame to use, its 1-based position in the listing (0: to the end)", kCallers);
     OptionField size;
     size.name = "frame_size";
     size.member = "frame_size";

@@ -1,13 +1,13 @@
 // placedb add: add frames to an existing database as keyframes (online
 // mapping from the command line), processed as the database was built, then
-// saved in place crash-safely.
+// saved in place crash-safely. The library numbers and filters the frames
+// (PlaceDatabase::AddFrames, AddOptions).
 #include <fmt/format.h>
-#include <spdlog/spdlog.h>
 
 #include "placedb/cli/flags.h"
+#include "placedb/cli/options.h"
 #include "placedb/exe/command.h"
-#include "placedb/util/check.h"
-#include "placedb/util/progress.h"
+#include "placedb/util/file_io.h"
 
 namespace placedb {
 namespace cli {
@@ -18,52 +18,57 @@ class AddCommand : public Command {
   CLI::App* Register(CLI::App& app) override {
     auto* cmd = app.add_subcommand(
         "add", "add frames to a database as keyframes, with its build settings, and save it");
-    db_.Add(cmd, /*threads=*/false);
+    db_.AddDirectoryOnly(cmd);
     source_.Add(cmd);
-    cmd->add_flag("--skip-existing", skip_existing_,
-                  "skip frames whose id is already a keyframe (default: an error)");
+    AddOptionFlags(cmd, &options_);
+    cmd->get_option("--id-offset")->excludes(cmd->get_option("--ids-from-names"));
     cmd->add_flag("--quiet", quiet_, "no progress bar");
+    cmd->footer(
+        "New frames get the ids after the largest the database ever held (placedb info shows "
+        "the next free id); poses come with --tum and bags.\n"
+        "Examples:\n"
+        "  placedb add --db office.db --tum data/tum_fr3_office_mini --skip-existing\n"
+        "  placedb add --db office.db --images shots/ --ids-from-names   (shots/042.jpg: id 42)");
     return cmd;
   }
 
   int Run() override {
     PlaceDatabase db = db_.Open();
-    const std::vector<Frame> frames = source_.Read();
-    if (frames.empty()) PLACEDB_THROW_INVALID("no frames to add");
-    // Every frame is checked before any is added: an error leaves the
-    // database as it was.
-    std::vector<const Frame*> todo;
-    for (const Frame& f : frames) {
-      if (!db.FindKeyframe(f.id)) {
-        todo.push_back(&f);
-      } else if (!skip_existing_) {
-        PLACEDB_THROW_INVALID("frame ", f.id, " (", f.image_path, ") is already a keyframe of ",
-                              db_.dir, " (`skip_existing` to leave such frames out)");
-      }
+    const AddReport r = db.AddFrames(source_.Read(), options_, !quiet_);
+    if (db.num_pending_changes() > 0) db.Save();  // nothing added: the files stay as they are
+    if (r.added == 0) {
+      fmt::print("added         0 keyframes\n");
+    } else if (r.added == 1) {
+      fmt::print("added         1 keyframe, id {}\n", r.first_id);
+    } else {
+      fmt::print("added         {} keyframes, ids {}..{}\n", r.added, r.first_id, r.last_id);
     }
-    std::vector<cv::Mat> images(todo.size());
-    for (size_t i = 0; i < todo.size(); ++i) {
-      images[i] = LoadFrameImage(*todo[i]);
-      if (images[i].empty()) ThrowUnreadableFrame(*todo[i]);
+    if (options_.skip_existing) {
+      fmt::print("skipped       {} already in the database (same source and content{})\n",
+                 r.skipped,
+                 r.skipped_by_path > 0
+                     ? fmt::format("; {} by path alone: keyframes saved without a content hash",
+                                   r.skipped_by_path)
+                     : "");
+      if (r.repeated > 0)
+        fmt::print("              {} given twice (added once)\n", r.repeated);
     }
-    ProgressBar progress("adding", todo.size(), !quiet_);
-    for (size_t i = 0; i < todo.size(); ++i) {
-      db.Add(*todo[i], images[i]);
-      images[i].release();
-      progress.Advance();
+    if (!r.changed_sources.empty()) {
+      fmt::print("new content   {} with the path of a keyframe but other content, added as new "
+                 "keyframes (the old ones stay): {}{}\n",
+                 r.changed_sources.size(), EscapeForTerminal(r.changed_sources.front()),
+                 r.changed_sources.size() > 1 ? ", ..." : "");
     }
-    progress.Finish();
-    db.Save();
-    fmt::print("added         {} keyframes ({} already there)\n", todo.size(),
-               frames.size() - todo.size());
-    fmt::print("database      {} now has {} keyframes\n", db_.dir, db.size());
+    const KeyframeIdSummary ids = db.id_summary();
+    fmt::print("database      {} now has {} keyframes, ids {}..{}, next free id {}\n",
+               EscapeForTerminal(db_.dir), ids.count, ids.first, ids.last, ids.next_free);
     return 0;
   }
 
  private:
   DatabaseArgs db_;
   SourceArgs source_;
-  bool skip_existing_ = false;
+  AddOptions options_;
   bool quiet_ = false;
 };
 

@@ -19,8 +19,14 @@ class InfoCommand : public Command {
  public:
   CLI::App* Register(CLI::App& app) override {
     auto* cmd = app.add_subcommand("info", "describe a database");
-    db_.Add(cmd, /*threads=*/false);
-    cmd->add_flag("--json", json_, "print the manifest as JSON");
+    db_.AddDirectoryOnly(cmd);
+    cmd->add_flag("--json", json_,
+                  "print the manifest as JSON, its \"ids\" with count, first, last, next_free, "
+                  "removed and removed_since");
+    cmd->footer(
+        "Examples:\n"
+        "  placedb info --db office.db\n"
+        "  placedb info --db office.db --json");
     return cmd;
   }
 
@@ -29,7 +35,7 @@ class InfoCommand : public Command {
     // it (a keyframe table would leave the features unread).
     const PlaceDatabase db = db_.Open();
     if (json_) {
-      std::cout << db.manifest_json(2) << "\n";
+      std::cout << db.info_json(2) << "\n";
       return 0;
     }
     const nlohmann::json m = nlohmann::json::parse(db.manifest_json());
@@ -68,6 +74,15 @@ class InfoCommand : public Command {
         fmt::print("whole frames    {} bytes as PNG\n", full.get<uint64_t>());
     }
     fmt::print("poses           {} of {} keyframes\n", with_pose, db.size());
+    const KeyframeIdSummary ids = db.id_summary();
+    fmt::print("keyframe ids    {}..{}, next free id {}\n", ids.first, ids.last, ids.next_free);
+    if (ids.removed) {
+      fmt::print("removed         {} keyframes since {}\n", *ids.removed,
+                 EscapeForTerminal(ids.removed_since));
+    } else {
+      fmt::print("removed         not recorded (written by an earlier placedb; counted from its "
+                 "next save)\n");
+    }
     return 0;
   }
 

@@ -622,7 +622,7 @@ TEST_F(CliTest, SearchModesDeadlinesAndOnlineChanges) {
   const CommandResult again =
       Placedb("add --db " + db + " --images " + kImages + " --first 40 --last 41 --quiet");
   EXPECT_EQ(again.code, 1);
-  EXPECT_TRUE(Contains(again.output, "already a keyframe")) << again.output;
+  EXPECT_TRUE(Contains(again.output, "is already keyframe 40 of")) << again.output;
   EXPECT_EQ(Placedb("add --db " + db + " --images " + kImages +
                     " --first 40 --last 41 --skip-existing --quiet")
                 .code,
@@ -916,6 +916,183 @@ TEST_F(CliTest, PathsOfAnyBytesGiveValidJsonAndEscapedText) {
   ASSERT_EQ(info.code, 0) << info.output;
   EXPECT_EQ(nlohmann::json::parse(info.output)["source"], "images:" + Path("caf\xef\xbf\xbd"));
   EXPECT_NO_THROW(nlohmann::json::parse(ReadFile(Path("b.json"))));
+}
+
+// Issue #19, item 2. A new folder's frames are numbered 1, 2, ... by their
+// place in its listing, which the database holds already: `add` used to
+// refuse them ("frame 1 is already a keyframe") or, with --skip-existing,
+// drop them all and say "added 0 keyframes (4 already there)". New frames get
+// the ids after the largest instead; TUM frames keep their poses;
+// --skip-existing knows frames by source path and content and counts truly;
+// the same path with other content is added.
+TEST_F(CliTest, AddGivesNewFramesFreshIdsAndSkipsBySourceAndContent) {
+  const std::string db = Path("add.db");
+  ASSERT_EQ(Placedb("build --images " + kImages + " --last 32 --out " + db + " --quiet").code, 0);
+  const std::string folder = Path("new");
+  fs::create_directories(folder);
+  auto put = [&](int image, const std::string& name) {
+    char source[16];
+    std::snprintf(source, sizeof(source), "/%03d.jpg", image);
+    fs::copy_file(kImages + source, folder + "/" + name, fs::copy_options::overwrite_existing);
+  };
+  for (int i = 1; i <= 4; ++i) put(32 + i, "00" + std::to_string(i) + ".jpg");
+  const CommandResult add = Placedb("add --db " + db + " --images " + folder + " --quiet");
+  ASSERT_EQ(add.code, 0) << add.output;
+  EXPECT_TRUE(Contains(add.output, "added         4 keyframes, ids 33..36")) << add.output;
+  EXPECT_TRUE(Contains(add.output, "now has 36 keyframes, ids 1..36, next free id 37"))
+      << add.output;
+  // Image 035 is now keyframe 35, the id its new frame got.
+  ASSERT_EQ(Placedb("query --db " + db + " --image " + kImages + "/035.jpg --json " +
+                    Path("q.json"))
+                .code,
+            0);
+  EXPECT_EQ(nlohmann::json::parse(ReadFile(Path("q.json")))["best"]["keyframe_id"], 35);
+
+  // TUM frames: fresh ids, their poses kept (3 of the 4 have one).
+  const std::string tum = PLACEDB_DATA_DIR "/tum_fr3_office_mini";
+  const CommandResult tum_add = Placedb("add --db " + db + " --tum " + tum + " --quiet");
+  ASSERT_EQ(tum_add.code, 0) << tum_add.output;
+  EXPECT_TRUE(Contains(tum_add.output, "added         4 keyframes, ids 37..40")) << tum_add.output;
+  EXPECT_TRUE(Contains(Placedb("info --db " + db).output, "poses           3 of 40 keyframes"));
+
+  // The folder again with two more frames: true counts.
+  put(37, "005.jpg");
+  put(38, "006.jpg");
+  const CommandResult again = Placedb("add --db " + db + " --images " + folder + " --quiet");
+  EXPECT_EQ(again.code, 1);
+  EXPECT_TRUE(Contains(again.output, "is already keyframe 33 of")) << again.output;
+  const CommandResult skip =
+      Placedb("add --db " + db + " --images " + folder + " --skip-existing --quiet");
+  ASSERT_EQ(skip.code, 0) << skip.output;
+  EXPECT_TRUE(Contains(skip.output, "added         2 keyframes, ids 41..42")) << skip.output;
+  EXPECT_TRUE(Contains(skip.output,
+                       "skipped       4 already in the database (same source and content)"))
+      << skip.output;
+  // Same path, other content: added, and said.
+  put(50, "002.jpg");
+  const CommandResult changed =
+      Placedb("add --db " + db + " --images " + folder + " --skip-existing --quiet");
+  ASSERT_EQ(changed.code, 0) << changed.output;
+  EXPECT_TRUE(Contains(changed.output, "added         1 keyframe, id 43")) << changed.output;
+  EXPECT_TRUE(Contains(changed.output, "skipped       5 already in the database")) << changed.output;
+  EXPECT_TRUE(Contains(changed.output, "new content   1 with the path of a keyframe but other "
+                                       "content, added as new keyframes"))
+      << changed.output;
+  // Nothing new: nothing is written (a save would replace the manifest by a
+  // new file, another inode).
+  struct stat before;
+  ASSERT_EQ(::stat((db + "/manifest.json").c_str(), &before), 0);
+  const CommandResult nothing =
+      Placedb("add --db " + db + " --images " + folder + " --skip-existing --quiet");
+  ASSERT_EQ(nothing.code, 0) << nothing.output;
+  EXPECT_TRUE(Contains(nothing.output, "added         0 keyframes")) << nothing.output;
+  EXPECT_TRUE(Contains(nothing.output, "skipped       6 already in the database")) << nothing.output;
+  struct stat after;
+  ASSERT_EQ(::stat((db + "/manifest.json").c_str(), &after), 0);
+  EXPECT_EQ(after.st_ino, before.st_ino);
+  // Ids from names and from an offset; a name that is not a number is refused.
+  const std::string named = Path("named");
+  fs::create_directories(named);
+  fs::copy_file(kImages + "/060.jpg", named + "/0100.jpg");
+  const CommandResult names =
+      Placedb("add --db " + db + " --images " + named + " --ids-from-names --quiet");
+  ASSERT_EQ(names.code, 0) << names.output;
+  EXPECT_TRUE(Contains(names.output, "added         1 keyframe, id 100")) << names.output;
+  fs::copy_file(kImages + "/061.jpg", named + "/frame_7.jpg");
+  const CommandResult bad_name =
+      PlacedbStderr("add --db " + db + " --images " + named + " --ids-from-names --quiet");
+  EXPECT_EQ(bad_name.code, 1);
+  EXPECT_TRUE(Contains(bad_name.output, "cannot take an id from the file name 'frame_7.jpg'"))
+      << bad_name.output;
+  EXPECT_EQ(std::count(bad_name.output.begin(), bad_name.output.end(), '\n'), 1)
+      << bad_name.output;
+  const CommandResult offset = Placedb("add --db " + db + " --images " + named +
+                                       " --id-offset 500 --skip-existing --quiet");
+  ASSERT_EQ(offset.code, 0) << offset.output;
+  EXPECT_TRUE(Contains(offset.output, "added         1 keyframe, id 501")) << offset.output;
+  EXPECT_TRUE(Contains(offset.output, "next free id 502")) << offset.output;
+}
+
+// Issue #19, item 2: info shows the id range, the next free id and the
+// removed count, as text and in --json.
+TEST_F(CliTest, InfoShowsIdRangeNextFreeIdAndRemovedCount) {
+  const std::string db = Path("ids.db");
+  ASSERT_EQ(Placedb("build --images " + kImages + " --last 12 --out " + db + " --quiet").code, 0);
+  CommandResult info = Placedb("info --db " + db);
+  EXPECT_TRUE(Contains(info.output, "keyframe ids    1..12, next free id 13")) << info.output;
+  EXPECT_TRUE(Contains(info.output, "removed         0 keyframes since ")) << info.output;
+  const CommandResult remove = Placedb("remove --db " + db + " --ids 12,3");
+  ASSERT_EQ(remove.code, 0) << remove.output;
+  EXPECT_TRUE(Contains(remove.output, "now has 10 keyframes, ids 1..11, next free id 13"))
+      << remove.output;
+  info = Placedb("info --db " + db);
+  EXPECT_TRUE(Contains(info.output, "keyframe ids    1..11, next free id 13")) << info.output;
+  EXPECT_TRUE(Contains(info.output, "removed         2 keyframes since ")) << info.output;
+  const CommandResult json = Placedb("info --db " + db + " --json");
+  ASSERT_EQ(json.code, 0) << json.output;
+  const nlohmann::json ids = nlohmann::json::parse(json.output)["ids"];
+  EXPECT_EQ(ids["count"], 10);
+  EXPECT_EQ(ids["first"], 1);
+  EXPECT_EQ(ids["last"], 11);
+  EXPECT_EQ(ids["next_free"], 13);
+  EXPECT_EQ(ids["removed"], 2);
+  EXPECT_TRUE(ids["removed_since"].is_string());
+  // Id 12 is not given again.
+  const std::string folder = Path("one");
+  fs::create_directories(folder);
+  fs::copy_file(kImages + "/070.jpg", folder + "/001.jpg");
+  const CommandResult add = Placedb("add --db " + db + " --images " + folder + " --quiet");
+  EXPECT_TRUE(Contains(add.output, "added         1 keyframe, id 13")) << add.output;
+}
+
+// Issue #19, item 6: the help of add, remove and info lists only the flags
+// they use (none of the open options: --partition, --keyframes,
+// --cluster-radius, ... do nothing there), shows defaults, and ends with
+// examples; `add --partition` is refused before any work.
+TEST_F(CliTest, AddRemoveInfoHelpListsOnlyTheirFlagsWithExamples) {
+  const CommandResult options = Placedb("options --json");
+  ASSERT_EQ(options.code, 0) << options.output;
+  std::vector<std::string> open_flags;
+  const nlohmann::json tables = nlohmann::json::parse(options.output).at("tables");
+  for (const nlohmann::json& table : tables) {
+    if (table.at("table").get<std::string>() != "open options") continue;
+    for (const nlohmann::json& o : table.at("options")) {
+      if (o.at("command_line").get<bool>()) open_flags.push_back(o.at("flag").get<std::string>());
+    }
+  }
+  ASSERT_GE(open_flags.size(), 5u);
+  for (const char* flag : {"--partition", "--keyframes", "--cluster-radius", "--threads"}) {
+    EXPECT_NE(std::find(open_flags.begin(), open_flags.end(), flag), open_flags.end()) << flag;
+  }
+  for (const std::string command : {"add", "remove", "info"}) {
+    const CommandResult help = Placedb(command + " --help");
+    ASSERT_EQ(help.code, 0) << help.output;
+    EXPECT_TRUE(HasFlag(help.output, "--db")) << command;
+    for (const std::string& flag : open_flags) {
+      EXPECT_FALSE(HasFlag(help.output, flag)) << command << " --help lists " << flag;
+    }
+    const size_t examples = help.output.find("Examples:\n  placedb " + command + " --db ");
+    EXPECT_NE(examples, std::string::npos) << help.output;
+  }
+  const CommandResult add_help = Placedb("add --help");
+  for (const char* shown : {"--id-offset INT=0", "--ids-from-names", "--skip-existing",
+                            "--images", "--tum", "--bag", "--first INT=1", "--quiet"}) {
+    EXPECT_TRUE(Contains(add_help.output, shown)) << shown << "\n" << add_help.output;
+  }
+  // --partition is no flag of add: refused while parsing, nothing done.
+  const std::string db = Path("db");
+  ASSERT_EQ(Placedb("build --images " + kImages + " --last 5 --out " + db + " --quiet").code, 0);
+  const std::string manifest = ReadFile(db + "/manifest.json");
+  const CommandResult partition =
+      PlacedbStderr("add --db " + db + " --images " + kImages + " --partition 0/2 --quiet");
+  EXPECT_EQ(partition.code, 1);
+  EXPECT_TRUE(Contains(partition.output, "--partition")) << partition.output;
+  EXPECT_EQ(std::count(partition.output.begin(), partition.output.end(), '\n'), 1)
+      << partition.output;
+  EXPECT_EQ(ReadFile(db + "/manifest.json"), manifest);
+  EXPECT_EQ(PlacedbStderr("info --db " + db + " --keyframes 1,2").code, 1);
+  EXPECT_EQ(PlacedbStderr("remove --db " + db + " --ids 1 --cluster-radius 3").code, 1);
+  EXPECT_EQ(ReadFile(db + "/manifest.json"), manifest);
 }
 
 }  // namespace

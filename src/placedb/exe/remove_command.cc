@@ -5,6 +5,7 @@
 #include "placedb/cli/flags.h"
 #include "placedb/exe/command.h"
 #include "placedb/util/check.h"
+#include "placedb/util/file_io.h"
 
 namespace placedb {
 namespace cli {
@@ -14,12 +15,18 @@ class RemoveCommand : public Command {
  public:
   CLI::App* Register(CLI::App& app) override {
     auto* cmd = app.add_subcommand("remove", "remove keyframes from a database and save it");
-    db_.Add(cmd, /*threads=*/false);
+    db_.AddDirectoryOnly(cmd);
     cmd->add_option("--ids", ids_, "keyframe ids to remove, e.g. 3,4,17")
         ->required()
         ->delimiter(',');
     cmd->add_flag("--ignore-missing", ignore_missing_,
                   "ids that are not keyframes are not an error");
+    cmd->footer(
+        "Removed ids are not given to new frames again (placedb info: next free id, removed "
+        "count).\n"
+        "Examples:\n"
+        "  placedb remove --db office.db --ids 3,4,17\n"
+        "  placedb remove --db office.db --ids 17 --ignore-missing");
     return cmd;
   }
 
@@ -33,9 +40,11 @@ class RemoveCommand : public Command {
     }
     size_t removed = 0;
     for (const int32_t id : ids_) removed += db.Remove(id);
-    db.Save();
+    if (db.num_pending_changes() > 0) db.Save();
     fmt::print("removed       {} keyframes\n", removed);
-    fmt::print("database      {} now has {} keyframes\n", db_.dir, db.size());
+    const KeyframeIdSummary ids = db.id_summary();
+    fmt::print("database      {} now has {} keyframes, ids {}..{}, next free id {}\n",
+               EscapeForTerminal(db_.dir), ids.count, ids.first, ids.last, ids.next_free);
     return 0;
   }
 

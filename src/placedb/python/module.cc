@@ -696,6 +696,10 @@ PYBIND11_MODULE(placedb, m) {
       .def_property_readonly(
           "scale", [](const KeyframeInfo& k) { return k.keyframe.scale; },
           "stored = (original - crop origin) * scale")
+      .def_property_readonly(
+          "source_hash", [](const KeyframeInfo& k) { return k.keyframe.source_hash; },
+          "XXH3-64 of the source image file's bytes when the keyframe was made; 0 when not "
+          "recorded")
       .def_readonly("num_features", &KeyframeInfo::num_features)
       .def("__repr__", [](const KeyframeInfo& k) {
         return fmt::format("Keyframe(id={}, source='{}', stored_image='{}', pose={})",
@@ -736,6 +740,16 @@ PYBIND11_MODULE(placedb, m) {
           "keyframe_ids",
           [](const PlaceDatabase& db) { return db.keyframe_ids(); },
           "ids of the keyframes opened, in file order")
+      .def_property_readonly(
+          "ids",
+          [](const PlaceDatabase& db) {
+            const py::object info = FromJsonText(db.info_json());
+            return py::object(info["ids"]);
+          },
+          "the ids as `placedb info` shows them, a dict: count, first, last, next_free (the id "
+          "a new frame gets: after the largest the database ever held), removed (keyframes "
+          "removed since removed_since; None when not recorded: a database of an earlier "
+          "placedb, not saved since)")
       .def("keyframe", &GetKeyframe, py::arg("id"),
            "The keyframe with this id, a Keyframe; KeyError when there is none.")
       .def("__contains__",

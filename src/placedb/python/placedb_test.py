@@ -82,6 +82,12 @@ class PlaceDbTest(unittest.TestCase):
         self.assertEqual(part.keyframe_ids, list(range(11, 21)))
         some = placedb.PlaceDatabase(self.db_dir, keyframes=[3, 5])
         self.assertEqual(some.keyframe_ids, [3, 5])
+        # The ids as `placedb info` shows them.
+        ids = db.ids
+        self.assertEqual((ids["count"], ids["first"], ids["last"]), (20, 1, 20))
+        self.assertEqual(ids["next_free"], 21)
+        self.assertEqual(ids["removed"], 0)
+        self.assertEqual(ids["removed_since"], m["created"])
 
     def test_keyframe(self):
         k = self.db.keyframe(5)
@@ -92,6 +98,8 @@ class PlaceDbTest(unittest.TestCase):
         self.assertEqual(k.timestamp, -1.0)
         self.assertEqual(k.original_size, (self.image5.shape[1], self.image5.shape[0]))
         self.assertGreater(k.num_features, 0)
+        self.assertNotEqual(k.source_hash, 0)  # recorded at build
+        self.assertNotEqual(k.source_hash, self.db.keyframe(6).source_hash)
         kp, desc = self.db.keyframe_features(5)
         self.assertEqual(kp.shape, (k.num_features, 7))
         self.assertEqual(desc.shape, (k.num_features, 32))

@@ -177,4 +177,31 @@ const OptionTable<OpenOptions>& OpenOptions::Table() {
 
 std::string OpenOptions::Check() const { return Table().Check(*this); }
 
+const OptionTable<AddOptions>& AddOptions::Table() {
+  static const OptionTable<AddOptions> table = [] {
+    using O = AddOptions;
+    OptionTable<O> t("add options");
+    t.Number("id_offset", PLACEDB_MEMBER(O, id_offset), OptionRange::RightOpen(0, 2147483648.0),
+             "id of the first frame given; the k-th gets id_offset + k - 1 (0: the ids after the "
+             "largest the database ever held)",
+             kCommandLine);
+    t.Bool("ids_from_names", PLACEDB_MEMBER(O, ids_from_names),
+           "each frame's id is its file name's number (042.jpg: 42); other names are refused",
+           BoolFlag::kSwitch, kCommandLine);
+    t.Bool("skip_existing", PLACEDB_MEMBER(O, skip_existing),
+           "leave out frames already in the database: same source path and file content "
+           "(default: an error); a known path with new content is added",
+           BoolFlag::kSwitch, kCommandLine);
+    t.Rule([](const O& o) -> std::string {
+      if (o.ids_from_names && o.id_offset != 0)
+        return "give `id_offset` or `ids_from_names`, not both";
+      return "";
+    });
+    return t;
+  }();
+  return table;
+}
+
+std::string AddOptions::Check() const { return Table().Check(*this); }
+
 }  // namespace placedb

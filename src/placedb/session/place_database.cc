@@ -15,6 +15,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <shared_mutex>
+#include <unordered_map>
 #include <unordered_set>
 
 #include "placedb/util/check.h"
@@ -22,6 +23,7 @@
 #include "placedb/util/file_io.h"
 #include "placedb/util/json_reader.h"
 #include "placedb/util/options.h"
+#include "placedb/util/progress.h"
 #include "placedb/util/thread_pool.h"
 #include "placedb/util/timer.h"
 
@@ -63,6 +65,12 @@ struct PlaceDatabase::Impl {
   std::unique_ptr<DirectoryLock> folder_lock;
   // PNGs written by additions not yet saved (removed if never saved).
   std::vector<std::string> unsaved_images;
+  // The manifest's "ids" entry (builder/builder.h, IdsEntry) as read at open
+  // or the last save; for a manifest without one, next_free 1 (the largest
+  // id decides) and removals not recorded.
+  int64_t stored_next_free = 1;
+  std::optional<uint64_t> stored_removed;
+  std::string removed_since;
 };
 
 PlaceDatabase::Impl::~Impl() {
@@ -148,6 +156,65 @@ void SweepDebris(const std::string& dir, const Database& db) {
   if (swept > 0) spdlog::info("{}: removed {} files left by writers that did not finish", dir, swept);
 }
 
+// The manifest's "ids" entry into `impl`; absent (an earlier placedb's
+// manifest): nothing recorded. A damaged one is CorruptDatabase.
+struct IdsRecord {
+  int64_t next_free = 1;
+  std::optional<uint64_t> removed;
+  std::string removed_since;
+};
+IdsRecord ReadIdsEntry(const nlohmann::json& manifest, const std::string& dir) {
+  IdsRecord r;
+  if (!manifest.contains("ids")) return r;
+  const JsonReader m(manifest, dir + "/manifest.json", JsonOrigin::kDatabaseFile);
+  const JsonReader ids = m.Child("ids");
+  r.next_free = ids.Integer("next_free", 1, int64_t{1} << 31);
+  r.removed = static_cast<uint64_t>(ids.Integer("removed", 0, int64_t{1} << 53));
+  r.removed_since = ids.String("removed_since");
+  return r;
+}
+
+// The id after the largest `db` holds or `stored` records, at most 2^31.
+int64_t NextFreeId(const Database& db, int64_t stored) {
+  int64_t next = stored;
+  for (const Keyframe& k : db.keyframes()) next = std::max(next, int64_t{k.id} + 1);
+  return next;
+}
+
+// A source path as it is compared (skip_existing): absolute and normal,
+// symlinks of existing parts resolved; as given when that fails.
+std::string ComparablePath(const std::string& path) {
+  std::error_code ec;
+  const fs::path absolute = fs::absolute(path, ec);
+  if (ec) return fs::path(path).lexically_normal().string();
+  const fs::path canonical = fs::weakly_canonical(absolute, ec);
+  return ec ? absolute.lexically_normal().string() : canonical.string();
+}
+
+// The id a file name is (ids_from_names): "042.jpg" -> 42.
+int32_t IdFromFileName(const Frame& frame) {
+  if (frame.load) {
+    PLACEDB_THROW_INVALID("frame ", frame.id, " (", frame.image_path,
+                          ") has no file name to take an id from (`ids_from_names` needs image "
+                          "files)");
+  }
+  const std::string name = fs::path(frame.image_path).filename().string();
+  const std::string stem = fs::path(frame.image_path).stem().string();
+  size_t digits = 0;
+  while (digits < stem.size() && stem[digits] >= '0' && stem[digits] <= '9') ++digits;
+  size_t first = 0;
+  while (first + 1 < stem.size() && stem[first] == '0') ++first;
+  const bool number = !stem.empty() && digits == stem.size() && stem.size() - first <= 10;
+  const int64_t id = number ? std::stoll(stem.substr(first)) : 0;
+  if (!number || id < 1 || id > INT32_MAX) {
+    PLACEDB_THROW_INVALID("cannot take an id from the file name '", name, "' (frame ", frame.id,
+                          ", ", frame.image_path,
+                          "): `ids_from_names` needs names that are a whole number in [1, 2^31), "
+                          "e.g. 042.jpg");
+  }
+  return static_cast<int32_t>(id);
+}
+
 }  // namespace
 
 PlaceDatabase::PlaceDatabase(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -200,6 +267,10 @@ PlaceDatabase PlaceDatabase::Open(const std::string& dir, const OpenOptions& opt
         OpenBowIndex(dir, db, impl->build, impl->pool.get(), &impl->vocabulary);
     if (bow) impl->bow.emplace(std::move(*bow));
   }
+  IdsRecord ids = ReadIdsEntry(db.info(), dir);
+  impl->stored_next_free = ids.next_free;
+  impl->stored_removed = ids.removed;
+  impl->removed_since = std::move(ids.removed_since);
   impl->clusters = ClusterSet::Make(db, options.clusters);
   impl->removed.assign(db.size(), 0);
   // Debris of killed writers goes, unless another process is changing the
@@ -294,6 +365,41 @@ StorageView::StorageView(const PlaceDatabase& session) {
   removed_ = &impl.removed;
   num_removed_ = impl.num_removed;
   pool_ = impl.pool.get();
+}
+
+KeyframeIdSummary PlaceDatabase::id_summary() const {
+  std::shared_lock<FairSharedMutex> lock(impl_->state);
+  const Impl& m = *impl_;
+  KeyframeIdSummary s;
+  for (size_t i = 0; i < m.db.size(); ++i) {
+    if (m.removed[i]) continue;
+    const int32_t id = m.db.keyframe(i).id;
+    s.first = s.count == 0 ? id : std::min(s.first, id);
+    s.last = s.count == 0 ? id : std::max(s.last, id);
+    ++s.count;
+  }
+  s.next_free = NextFreeId(m.db, m.stored_next_free);
+  if (m.stored_removed) {
+    s.removed = *m.stored_removed + m.num_removed;
+    s.removed_since = m.removed_since;
+  }
+  return s;
+}
+
+std::string PlaceDatabase::info_json(int indent) const {
+  const KeyframeIdSummary s = id_summary();
+  nlohmann::json info;
+  {
+    std::shared_lock<FairSharedMutex> lock(impl_->state);
+    info = impl_->db.info();
+  }
+  info["ids"] = {{"count", s.count},
+                 {"first", s.first},
+                 {"last", s.last},
+                 {"next_free", s.next_free},
+                 {"removed", s.removed ? nlohmann::json(*s.removed) : nlohmann::json()},
+                 {"removed_since", s.removed_since}};
+  return DumpJson(info, indent);
 }
 
 std::string PlaceDatabase::StoredImagePath(const Keyframe& keyframe) const {
@@ -453,7 +559,7 @@ void PlaceDatabase::BeginChange() {
   m.folder_lock = std::move(lock);
 }
 
-void PlaceDatabase::Add(const Frame& frame, const cv::Mat& image) {
+void PlaceDatabase::Add(const Frame& frame, const cv::Mat& image, uint64_t source_hash) {
   RequireWholeDatabase(impl_->whole, impl_->subset_description, "add keyframes");
   if (image.empty()) PLACEDB_THROW_INVALID("the image of keyframe ", frame.id, " is empty");
   if (image.depth() != CV_8U ||
@@ -466,6 +572,7 @@ void PlaceDatabase::Add(const Frame& frame, const cv::Mat& image) {
   if (image.channels() == 1) cv::cvtColor(image, bgr, cv::COLOR_GRAY2BGR);
   if (image.channels() == 4) cv::cvtColor(image, bgr, cv::COLOR_BGRA2BGR);
   ProcessedFrame processed = ProcessFrame(frame, bgr, impl_->build, *impl_->extractor);
+  processed.keyframe.source_hash = source_hash;
   std::vector<uint8_t> png;
   if (impl_->build.store_images) {
     cv::imencode(".png", processed.stored_image, png,
@@ -544,6 +651,135 @@ void PlaceDatabase::AddLocked(Keyframe keyframe, const FeatureSet& features) {
   // The old storage (after a swap) is freed here, outside the lock.
 }
 
+AddReport PlaceDatabase::AddFrames(const std::vector<Frame>& frames, const AddOptions& options,
+                                   bool progress) {
+  PLACEDB_CHECK_OPTIONS(options);
+  RequireWholeDatabase(impl_->whole, impl_->subset_description, "add keyframes");
+  if (frames.empty()) PLACEDB_THROW_INVALID("no frames to add");
+  // Ids from names first: a name that is not a number is refused before
+  // any image is read.
+  std::vector<int32_t> name_ids;
+  if (options.ids_from_names) {
+    for (const Frame& f : frames) name_ids.push_back(IdFromFileName(f));
+  }
+  // The keyframes by source path (copies: other writers may publish
+  // meanwhile; the ids are checked again when each frame is added).
+  struct Held {
+    int32_t id;          // a keyframe's, or 0 for a frame given earlier
+    uint64_t hash;
+    size_t pending = 0;  // that earlier frame's place in `todo`
+  };
+  std::unordered_map<std::string, std::vector<Held>> by_path;
+  for (const Keyframe& k : keyframes()) {
+    by_path[ComparablePath(k.source)].push_back({k.id, k.source_hash});
+  }
+  std::vector<std::pair<size_t, size_t>> repeats;  // (frame, its first copy's place in todo)
+  AddReport report;
+  report.ids.assign(frames.size(), 0);
+  std::vector<size_t> todo;
+  std::vector<cv::Mat> images;
+  std::vector<uint64_t> hashes;
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const Frame& f = frames[i];
+    uint64_t hash = 0;
+    cv::Mat image = LoadFrameImage(f, &hash);
+    if (image.empty()) ThrowUnreadableFrame(f);
+    std::string path = ComparablePath(f.image_path);
+    const Held* same = nullptr;
+    bool known_path = false;
+    if (const auto it = by_path.find(path); it != by_path.end()) {
+      known_path = true;
+      for (const Held& h : it->second) {
+        if (h.hash == hash || h.hash == 0) {
+          same = &h;
+          if (h.hash == hash) break;  // a content match goes before a path-only one
+        }
+      }
+    }
+    if (same && same->id == 0) {
+      // Given twice: added once.
+      if (!options.skip_existing) {
+        PLACEDB_THROW_INVALID("frame ", f.id, " (", f.image_path,
+                              ") is the same image as an earlier frame given (same source and "
+                              "content); `skip_existing` adds it once");
+      }
+      ++report.repeated;
+      repeats.emplace_back(i, same->pending);
+      continue;
+    }
+    if (same) {
+      if (!options.skip_existing) {
+        PLACEDB_THROW_INVALID("frame ", f.id, " (", f.image_path, ") is already keyframe ",
+                              same->id, " of ", impl_->dir,
+                              same->hash != 0
+                                  ? " (same source and content)"
+                                  : " (same source path; that keyframe has no content hash)",
+                              "; `skip_existing` leaves such frames out");
+      }
+      ++report.skipped;
+      if (same->hash == 0) ++report.skipped_by_path;
+      report.ids[i] = same->id;
+      continue;
+    }
+    if (known_path) report.changed_sources.push_back(f.image_path);
+    by_path[path].push_back({0, hash, todo.size()});
+    todo.push_back(i);
+    images.push_back(std::move(image));
+    hashes.push_back(hash);
+  }
+  // The ids, all settled before anything changes.
+  const int64_t next_free = id_summary().next_free;
+  std::unordered_set<int32_t> taken;
+  for (size_t j = 0; j < todo.size(); ++j) {
+    const size_t i = todo[j];
+    const Frame& f = frames[i];
+    int64_t id = options.ids_from_names   ? name_ids[i]
+                 : options.id_offset > 0  ? int64_t{options.id_offset} + static_cast<int64_t>(i)
+                                          : next_free + static_cast<int64_t>(j);
+    if (id > INT32_MAX) {
+      PLACEDB_THROW_INVALID("frame ", f.id, " (", f.image_path, ") would get id ", id,
+                            ", above the largest, 2^31 - 1",
+                            options.id_offset > 0 ? " (a smaller `id_offset`)" : "");
+    }
+    const int32_t id32 = static_cast<int32_t>(id);
+    {
+      std::shared_lock<FairSharedMutex> lock(impl_->state);
+      const int index = impl_->db.IndexOfId(id32);
+      if (index >= 0) {
+        PLACEDB_THROW_INVALID(
+            "frame ", f.id, " (", f.image_path, ") would get id ", id32, ", which is taken by ",
+            impl_->removed[static_cast<size_t>(index)] ? "a keyframe removed in this session"
+                                                       : "the keyframe of " +
+                                                             impl_->db.keyframe(index).source,
+            options.ids_from_names ? " (`ids_from_names`)"
+            : options.id_offset > 0 ? " (choose another `id_offset`)"
+                                    : "");
+      }
+    }
+    if (!taken.insert(id32).second) {
+      PLACEDB_THROW_INVALID("frame ", f.id, " (", f.image_path, ") would get id ", id32,
+                            ", which another frame given gets too",
+                            options.ids_from_names ? " (`ids_from_names`: two names of one number)"
+                                                   : "");
+    }
+    report.ids[i] = id32;
+  }
+  for (const auto& [frame, first_copy] : repeats) report.ids[frame] = report.ids[todo[first_copy]];
+  ProgressBar bar("adding", todo.size(), progress);
+  for (size_t j = 0; j < todo.size(); ++j) {
+    Frame f = frames[todo[j]];
+    f.id = report.ids[todo[j]];
+    Add(f, images[j], hashes[j]);
+    images[j].release();
+    ++report.added;
+    report.first_id = report.added == 1 ? f.id : std::min(report.first_id, f.id);
+    report.last_id = std::max(report.last_id, f.id);
+    bar.Advance();
+  }
+  bar.Finish();
+  return report;
+}
+
 bool PlaceDatabase::Remove(int32_t id) {
   Impl& m = *impl_;
   RequireWholeDatabase(m.whole, m.subset_description, "remove keyframes");
@@ -577,6 +813,11 @@ void PlaceDatabase::Save() {
   }
   Database compacted = m.db.Compacted(keep);
   if (compacted.empty()) PLACEDB_THROW_INVALID("cannot save a database with no keyframes left");
+  // The ids the database ever held stay used; removals are counted from the
+  // build (or from this save, for a manifest of an earlier placedb).
+  compacted.info()["ids"] =
+      IdsEntry(NextFreeId(m.db, m.stored_next_free), m.stored_removed.value_or(0) + m.num_removed,
+               m.stored_removed ? m.removed_since : NowIso8601());
   std::string old_bow;
   if (m.bow) {
     const BowIndex index =
@@ -604,6 +845,9 @@ void PlaceDatabase::Save() {
   std::swap(m.bow, f.bow);
   std::swap(m.clusters, f.clusters);
   std::swap(m.removed, f.removed);
+  m.stored_next_free = f.stored_next_free;
+  m.stored_removed = f.stored_removed;
+  m.removed_since = f.removed_since;
   m.num_removed = 0;
   m.pending = 0;
   m.unsaved_images.clear();

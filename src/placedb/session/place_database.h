@@ -70,6 +70,66 @@ struct OpenOptions {
   std::string Check() const;
 };
 
+// How PlaceDatabase::AddFrames numbers the frames it adds and which it
+// leaves out.
+struct AddOptions {
+  // The id of the first frame given: the k-th frame given (1-based) gets
+  // id_offset + k - 1, skipped frames leaving their ids unused. 0 (default):
+  // the frames added get the ids after the largest the database ever held
+  // (KeyframeIdSummary::next_free), in order. Range [0, 2^31).
+  int id_offset = 0;
+  // Each frame's id is the number its file name is (042.jpg: 42, the
+  // extension dropped): digits only, at least 1, below 2^31. Any other name
+  // (frame_042.jpg, -4.jpg, 1e3.png, a bag frame) is refused before
+  // anything is read. Not together with id_offset. Default false.
+  bool ids_from_names = false;
+  // A frame the database already holds (a keyframe of the same source path
+  // and the same source_hash, the file's content; by path alone for a
+  // keyframe saved without a hash) is left out instead of being an error.
+  // A frame with the path of a keyframe but other content is added (a new
+  // keyframe; the old one stays). Default false.
+  bool skip_existing = false;
+
+  // The options' names, defaults, ranges and help (util/option_table.h).
+  static const OptionTable<AddOptions>& Table();
+  std::string Check() const;
+};
+
+// What AddFrames did.
+struct AddReport {
+  size_t added = 0;
+  // Left out (skip_existing): already in the database, same source path and
+  // content; of them, `skipped_by_path` matched a keyframe saved without a
+  // source hash by its path alone.
+  size_t skipped = 0;
+  size_t skipped_by_path = 0;
+  // Left out (skip_existing): the same image as an earlier frame given.
+  size_t repeated = 0;
+  // Added although a keyframe has the same source path: the content differs.
+  std::vector<std::string> changed_sources;
+  // Per frame given: the id it was added as, or the id of the keyframe that
+  // already holds it (skipped).
+  std::vector<int32_t> ids;
+  // The smallest and largest id added (0 when none was).
+  int32_t first_id = 0, last_id = 0;
+};
+
+// The keyframe ids of a database (placedb info).
+struct KeyframeIdSummary {
+  size_t count = 0;          // keyframes answering now
+  int32_t first = 0;         // the smallest and largest of their ids (0 when none)
+  int32_t last = 0;
+  // The id AddFrames gives the next new frame by default: after the largest
+  // id the database ever held (also removed keyframes'), so an id is never
+  // given to another place. 2^31 when no id is left.
+  int64_t next_free = 1;
+  // Keyframes removed since `removed_since` (saved, and this session's
+  // pending removals); nullopt when not recorded: a database an earlier
+  // placedb wrote, not saved since (counting starts with the next save).
+  std::optional<uint64_t> removed;
+  std::string removed_since;  // ISO 8601 UTC; "" when not recorded
+};
+
 class PlaceDatabase {
  public:
   // Opens the database directory `dir`: loads the keyframes (or the subset),
@@ -123,6 +183,12 @@ class PlaceDatabase {
   // The features of keyframe `id` (a copy); InvalidArgument when
   // there is no such keyframe.
   FeatureSet KeyframeFeatures(int32_t id) const;
+  // The ids: range, next free id, removals.
+  KeyframeIdSummary id_summary() const;
+  // What `placedb info --json` prints: the manifest, its "ids" entry
+  // completed by id_summary() (count, first, last, next_free, removed: null
+  // when not recorded, removed_since).
+  std::string info_json(int indent = -1) const;
   // Path of a keyframe's stored PNG ("" when the database keeps none).
   std::string StoredImagePath(const Keyframe& keyframe) const;
 
@@ -159,7 +225,19 @@ class PlaceDatabase {
   // queries wait only while it is appended, and see it whole or not at all.
   // Writers are serialised. InvalidArgument for a taken id, a bad
   // image or a session opened on a subset (open the whole database).
-  void Add(const Frame& frame, const cv::Mat& image);
+  // `source_hash` is recorded as Keyframe::source_hash (SourceHash of the
+  // image's file; 0: none).
+  void Add(const Frame& frame, const cv::Mat& image, uint64_t source_hash = 0);
+  // Adds frames of a source (an image folder, a TUM folder, a bag) as
+  // keyframes, numbered and filtered by `options`: every frame's id is
+  // settled, its image read (once, with its source hash) and checked before
+  // the first is added, so a bad frame, a taken id or a frame already held
+  // (without skip_existing) changes nothing. Poses and timestamps are the
+  // frames'. InvalidArgument for those errors and for no frames; NotFound
+  // for a missing image. Does not save. `progress`: a progress bar on a
+  // terminal.
+  AddReport AddFrames(const std::vector<Frame>& frames, const AddOptions& options = AddOptions(),
+                      bool progress = false);
   // The same with features computed elsewhere (in the stored image's frame).
   void Add(Keyframe keyframe, const FeatureSet& features);
   // Takes keyframe `id` out of every later answer; false when there is no

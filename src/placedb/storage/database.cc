@@ -364,9 +364,9 @@ Database::SaveResult Database::Save(const std::string& dir) const {
                           ": it holds a database, which the subset would replace (save a subset "
                           "into a new folder)");
   }
-  const uint32_t num_sections = 4;
+  const uint32_t num_sections = 5;
   const size_t table_end = kf::kHeaderBytes + num_sections * kf::kSectionEntryBytes;
-  char header[kf::kHeaderBytes + 4 * kf::kSectionEntryBytes] = {};
+  char header[kf::kHeaderBytes + 5 * kf::kSectionEntryBytes] = {};
 
   // Written to a temporary file, committed under its content name.
   AtomicFileWriter out((fs::path(dir) / "keyframes.bin").string());
@@ -427,6 +427,14 @@ Database::SaveResult Database::Save(const std::string& dir) const {
       put(k.image_file.data(), k.image_file.size());
     }
   });
+  // The small sections first: the descriptors stay last.
+  const Written source_hashes = section([&](auto put) {
+    for (const Keyframe& k : keyframes_) {
+      char h[8];
+      SetField<uint64_t>(h, 0, k.source_hash);
+      put(h, sizeof(h));
+    }
+  });
   const Written keypoints = section([&](auto put) {
     for (size_t i = 0; i < keyframes_.size(); ++i) {
       const Span<cv::KeyPoint> kp = Keypoints(i);
@@ -453,7 +461,8 @@ Database::SaveResult Database::Save(const std::string& dir) const {
   const std::pair<uint32_t, Written> table[] = {{kf::kKeyframes, keyframes},
                                                 {kf::kStrings, strings},
                                                 {kf::kKeypoints, keypoints},
-                                                {kf::kDescriptors, descriptors}};
+                                                {kf::kDescriptors, descriptors},
+                                                {kf::kSourceHashes, source_hashes}};
   for (uint32_t s = 0; s < num_sections; ++s) {
     char* e = header + kf::kHeaderBytes + s * kf::kSectionEntryBytes;
     SetField<uint32_t>(e, 0, table[s].first);
@@ -463,7 +472,7 @@ Database::SaveResult Database::Save(const std::string& dir) const {
   }
   const uint64_t checksum = HeaderChecksum(header, num_sections);
   SetField<uint64_t>(header, kf::kChecksumOffset, checksum);
-  static_assert(sizeof(header) == kf::kHeaderBytes + 4 * kf::kSectionEntryBytes, "header size");
+  static_assert(sizeof(header) == kf::kHeaderBytes + 5 * kf::kSectionEntryBytes, "header size");
   (void)table_end;
   out.WriteAt(0, header, sizeof(header));
 
@@ -572,7 +581,7 @@ void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const 
     uint64_t offset = 0, bytes = 0, checksum = 0;
     bool present = false;
   };
-  Section sections[5];
+  Section sections[6];
   std::vector<std::pair<uint64_t, uint64_t>> extents;
   for (uint32_t s = 0; s < num_sections; ++s) {
     const char* e = b + kf::kHeaderBytes + s * kf::kSectionEntryBytes;
@@ -583,7 +592,7 @@ void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const 
     if (offset < table_end || offset > size || bytes > size - offset)
       fail("section ", s, " (offset ", offset, ", ", bytes, " bytes) lies outside the file");
     extents.emplace_back(offset, bytes);
-    if (kind >= kf::kKeyframes && kind <= kf::kDescriptors) {
+    if (kind >= kf::kKeyframes && kind <= kf::kSourceHashes) {
       if (sections[kind].present) fail("section kind ", kind, " appears twice");
       sections[kind] = {offset, bytes, Field<uint64_t>(e, 24), true};
     }
@@ -605,6 +614,10 @@ void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const 
     fail("the keypoint section's size does not match ", num_features, " features");
   if (descriptors.bytes != num_features * row_bytes)
     fail("the descriptor section's size does not match ", num_features, " features");
+  // Optional (files of earlier versions lack it: hashes not recorded).
+  const Section& source_hashes = sections[kf::kSourceHashes];
+  if (source_hashes.present && source_hashes.bytes != num_keyframes * 8)
+    fail("the source hash section's size does not match ", num_keyframes, " keyframes");
   const bool with_features = options.contents == LoadContents::kAll;
   auto verify = [&](const Section& s, const char* what) {
     if (Checksum64(b + s.offset, s.bytes) != s.checksum)
@@ -615,6 +628,7 @@ void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const 
   // keyframe's features lie.
   verify(keyframes, "keyframe section");
   verify(strings, "string section");
+  if (source_hashes.present) verify(source_hashes, "source hash section");
 
   // Keyframe records: every value checked; ranges back to back.
   std::vector<Keyframe> all(num_keyframes);
@@ -667,6 +681,8 @@ void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const 
     const char* text = b + strings.offset + string_offset;
     k.source.assign(text, source_len);
     k.image_file.assign(text + source_len, image_len);
+    if (source_hashes.present)
+      k.source_hash = Field<uint64_t>(b + source_hashes.offset, static_cast<size_t>(8 * i));
     const std::string reason = CheckKeyframe(k);
     if (!reason.empty()) fail("keyframe record ", i, " (id ", k.id, "): ", reason);
   }

@@ -63,6 +63,7 @@ Database MakeDatabase(const ExtractorOptions& options, int n, bool with_poses) {
     k.stored_size = stored.size();
     k.scale = 0.5;
     k.source = RtabmapImage(i);
+    k.source_hash = i == 3 ? 0 : 0x8000000000000000ull + 77 * i;  // 0: not recorded
     k.image_file = i == 2 ? "" : "images/" + std::to_string(i) + ".png";  // one without image
     if (with_poses && i % 2 == 1) {
       Pose pose;
@@ -89,6 +90,7 @@ void ExpectKeyframesEqual(const Keyframe& a, const Keyframe& b) {
   EXPECT_EQ(a.scale, b.scale);
   EXPECT_EQ(a.source, b.source);
   EXPECT_EQ(a.image_file, b.image_file);
+  EXPECT_EQ(a.source_hash, b.source_hash);
   ASSERT_EQ(a.pose.has_value(), b.pose.has_value()) << "keyframe " << a.id;
   if (a.pose) {
     EXPECT_EQ(a.pose->translation, b.pose->translation);
@@ -342,7 +344,9 @@ TEST(DatabaseTest, SubsetsOpenOnlyTheirKeyframes) {
 // Offset of section `kind` in the bytes of a keyframe file (its section
 // table), or 0 with a test failure when there is none.
 uint64_t SectionOffsetIn(const std::string& bytes, uint32_t kind) {
-  for (uint32_t s = 0; s < 4; ++s) {
+  uint32_t sections;
+  std::memcpy(&sections, &bytes[24], 4);
+  for (uint32_t s = 0; s < sections && s < 16; ++s) {
     uint32_t k;
     uint64_t offset;
     std::memcpy(&k, &bytes[64 + 32 * s], 4);
@@ -426,6 +430,8 @@ TEST_F(DatabaseFileTest, CorruptedBytesFailTheirChecksum) {
            {SectionOffset(keyframe_file::kKeyframes) + 5, "keyframe section checksum mismatch"},
            {SectionOffset(keyframe_file::kStrings) + 3, "string section checksum mismatch"},
            {SectionOffset(keyframe_file::kKeypoints) + 77, "keypoint section checksum mismatch"},
+           {SectionOffset(keyframe_file::kSourceHashes) + 9,
+            "source hash section checksum mismatch"},
            {bytes_.size() - 10, "descriptor section checksum mismatch"}}) {
     std::string bad = bytes_;
     bad[at] = static_cast<char>(bad[at] ^ 0x10);
@@ -441,6 +447,35 @@ TEST_F(DatabaseFileTest, CorruptedBytesFailTheirChecksum) {
 
 // A keyframe table (a voter's view) reads neither keypoints nor descriptors:
 // damage there does not stop it, and the features cannot be asked for.
+// The source hash section is optional: a file without it (an earlier
+// placedb's) reads with every hash 0, "not recorded"; one of another size
+// than the keyframes' is refused.
+TEST_F(DatabaseFileTest, SourceHashesAreOptional) {
+  const Database saved = Database::Load(Dir());
+  ASSERT_EQ(saved.size(), 3u);
+  EXPECT_EQ(saved.keyframe(0).source_hash, 0x8000000000000000ull + 77);
+  EXPECT_EQ(saved.keyframe(2).source_hash, 0u);
+  // The fifth entry of the table is the hashes': a table of four drops it.
+  uint32_t kind;
+  std::memcpy(&kind, &bytes_[64 + 4 * 32], 4);
+  ASSERT_EQ(kind, keyframe_file::kSourceHashes);
+  std::string old = bytes_;
+  Put<uint32_t>(&old, 24, 4);
+  WriteResealed(old);
+  const Database earlier = Database::Load(Dir());
+  ASSERT_EQ(earlier.size(), 3u);
+  for (size_t i = 0; i < 3; ++i) {
+    EXPECT_EQ(earlier.keyframe(i).source_hash, 0u);
+    Keyframe k = saved.keyframe(i);
+    k.source_hash = 0;
+    ExpectKeyframesEqual(earlier.keyframe(i), k);
+  }
+  std::string short_section = bytes_;
+  Put<uint64_t>(&short_section, 64 + 4 * 32 + 16, 16);
+  WriteResealed(short_section);
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), "the source hash section's size does not match"));
+}
+
 TEST_F(DatabaseFileTest, KeyframeTableSkipsTheFeatures) {
   std::string bad = bytes_;
   bad[bytes_.size() - 10] ^= 0x10;

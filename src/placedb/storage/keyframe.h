@@ -22,6 +22,13 @@ struct Keyframe {
   double scale = 1.0;         // stored = (original - crop.tl()) * scale
   std::string source;         // path of the source image
   std::string image_file;     // stored PNG relative to the database dir ("" if none)
+  // What the source was when the keyframe was made (SourceHash,
+  // dataset/frame.h): XXH3-64 of the image file's bytes (of the decoded
+  // pixels for frames without a file, from a bag); 0 when not recorded
+  // (keyframes saved by an earlier placedb, or added from features).
+  // `placedb add --skip-existing` knows a frame it already holds by source
+  // path and this hash.
+  uint64_t source_hash = 0;
 
   // Maps a point of the stored image back to the original image.
   cv::Point2f ToOriginal(const cv::Point2f& stored) const {

@@ -17,6 +17,11 @@
 //     3 keypoints    F records of 28 bytes, the layout of cv::KeyPoint
 //                    (x, y, size, angle, response: f32; octave, class_id: i32)
 //     4 descriptors  F rows of descriptor bytes each
+//     5 source hashes  K u64, keyframe i's Keyframe::source_hash (0: not
+//                    recorded). Optional: files of earlier placedb versions
+//                    lack it, and their keyframes read with hash 0 (a
+//                    reader of that time skips it as an unknown kind, so
+//                    the format version stays 2).
 //   Unknown section kinds are skipped (their checksums are not verified).
 //
 // Keyframe i owns features [feature_offset, feature_offset + feature_count),
@@ -52,6 +57,7 @@ enum SectionKind : uint32_t {
   kStrings = 2,
   kKeypoints = 3,
   kDescriptors = 4,
+  kSourceHashes = 5,  // optional
 };
 
 // Recomputes the checksums of a keyframe file image, as far as its section
