@@ -27,8 +27,9 @@ class AddCommand : public Command {
         "New frames get the ids after the largest the database ever held (placedb info shows "
         "the next free id); poses come with --tum and bags.\n"
         "Examples:\n"
-        "  placedb add --db office.db --tum data/tum_fr3_office_mini --skip-existing\n"
-        "  placedb add --db office.db --images shots/ --ids-from-names   (shots/042.jpg: id 42)");
+        "  placedb add --db office_tum.db --tum data/tum_fr3_office_32 --first 17 --skip-existing\n"
+        "  placedb add --db office.db --images data/rtabmap_loop/images --first 41 "
+        "--ids-from-names   # 042.jpg: id 42\n");
     return cmd;
   }
 
