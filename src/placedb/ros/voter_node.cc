@@ -11,6 +11,7 @@
 #include <std_msgs/Header.h>
 #include <std_msgs/String.h>
 
+#include <cstdio>
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -253,9 +254,10 @@ int main(int argc, char** argv) {
     placedb::Voter voter(std::move(keyframes), vote, scheme, map_frame, answers_file,
                          stats_period_s);
     ros::spin();
-    // Stopped (SIGINT, SIGTERM, rosnode kill): what it did, once more.
-    const std::string report = voter.Report() + " (at shutdown)";
-    ROS_INFO("%s", report.c_str());
+    // Stopped (SIGINT, SIGTERM, rosnode kill): what it did, once more. (On
+    // stdout: rosconsole no longer prints once the node has shut down.)
+    std::printf("%s (at shutdown)\n", voter.Report().c_str());
+    std::fflush(stdout);
     return 0;
   });
 }
