@@ -552,6 +552,30 @@ TEST_F(RosSystemTest, MalformedMessagesAreDroppedOncePerCause) {
   const std::string voter_log = ReadLog("hostile_voter.log");
   EXPECT_EQ(count(voter_log, "(database"), 1u) << voter_log;
   EXPECT_EQ(count(voter_log, "(partition"), 1u) << voter_log;
+  // Every drop is counted by its cause: on voter_stats (latched) and in the
+  // voter's line at shutdown.
+  ros::CallbackQueue queue;
+  ros::NodeHandle stats_nh;
+  stats_nh.setCallbackQueue(&queue);
+  nlohmann::json stats;
+  const ros::Subscriber stats_sub = stats_nh.subscribe<std_msgs::String>(
+      ns + "/voter_stats", 10,
+      [&](const std_msgs::StringConstPtr& m) { stats = nlohmann::json::parse(m->data); },
+      ros::VoidConstPtr(), ros::TransportHints());
+  EXPECT_TRUE(WaitUntil([&] {
+    queue.callAvailable();
+    return !stats.is_null() && stats["dropped"].value("database", 0) >= 5 &&
+           stats["dropped"].value("partition", 0) >= 5 && stats["answered"].get<int>() >= 1;
+  })) << stats.dump();
+  LoopbackRos::Stop(voter);
+  const std::string at_shutdown = ReadLog("hostile_voter.log");
+  EXPECT_NE(at_shutdown.find("(at shutdown)"), std::string::npos) << at_shutdown;
+  const size_t line = at_shutdown.rfind("dropped: ");
+  ASSERT_NE(line, std::string::npos) << at_shutdown;
+  EXPECT_NE(at_shutdown.find("database " + std::to_string(stats["dropped"]["database"].get<int>()), line),
+            std::string::npos)
+      << at_shutdown;
+  EXPECT_NE(at_shutdown.find("partition ", line), std::string::npos) << at_shutdown;
   const std::string features_log = ReadLog("hostile_features_worker.log");
   EXPECT_EQ(count(features_log, "(the query has surf features"), 1u) << features_log;
   EXPECT_EQ(count(features_log, "(descriptors"), 1u) << features_log;
@@ -775,6 +799,61 @@ TEST_F(RosSystemTest, ASecondFeedRunIsAnswered) {
   EXPECT_NE(log.find("placedb_voter: 48 frames answered ("), std::string::npos) << log;
   EXPECT_NE(log.find("in 3 feed runs; dropped: "), std::string::npos) << log;
   EXPECT_NE(log.find("(at shutdown)"), std::string::npos) << log;
+}
+
+// A bag of a feed's topics (frames, image) played twice with rosbag play at
+// its own pace (10 Hz) into a running voter: the second play keeps the run
+// id and numbers 0..7 again, which starts a new run; every frame of both
+// plays is answered once. (rosbag play -k stays up after the bag, so no
+// message is lost to its exit; this test stops it.)
+TEST_F(RosSystemTest, ABagPlayedTwiceIsAnsweredTwice) {
+  const std::string ns = "/bagplay";
+  const std::string answers_file = Path("bagplay_answers.jsonl");
+  const std::string bag_path = Path("feed.bag");
+  {
+    rosbag::Bag bag(bag_path, rosbag::bagmode::Write);
+    const std::vector<Frame> frames = ListImageFolder(kImages, 41, 48);
+    for (size_t i = 0; i < frames.size(); ++i) {
+      std_msgs::Header h;
+      h.seq = static_cast<uint32_t>(i);
+      h.stamp = ros::Time(200.0 + 0.1 * static_cast<double>(i));
+      h.frame_id = "0123456789abcdef";  // the recorded feed's run id
+      bag.write(ns + "/frames", h.stamp, h);
+      h.frame_id = "camera";
+      bag.write(ns + "/image", h.stamp, BgrToImageMessage(LoadFrameImage(frames[i]), h));
+    }
+  }
+  const pid_t voter =
+      Start({"placedb_voter", "--db", Db(), "--partitions", "2", "--deadline-ms", "2000",
+             "--answers-file", answers_file},
+            "bagplay_voter.log", ns);
+  for (int i = 0; i < 2; ++i) {
+    Start({"placedb_worker", "--db", Db(), "--partition", std::to_string(i) + "/2"},
+          "bagplay_worker" + std::to_string(i) + ".log", ns);
+  }
+  ASSERT_TRUE(WaitLinked({ns + "/placedb_worker_0", ns + "/placedb_worker_1"},
+                         ns + "/partial_results", {ns + "/placedb_voter"}))
+      << ReadLog("bagplay_voter.log");
+  for (size_t play = 1; play <= 2; ++play) {
+    const pid_t player = Start({"rosbag", "play", "--quiet", "--keep-alive",
+                                "--wait-for-subscribers", bag_path, "__name:=player"},
+                               "bagplay_player.log", "");
+    EXPECT_EQ(WaitLines(answers_file, 8 * play).size(), 8 * play)
+        << ReadLog("bagplay_voter.log") << ReadLog("bagplay_player.log");
+    LoopbackRos::Stop(player);
+  }
+  std::map<uint64_t, int> answered;
+  for (const nlohmann::json& a : WrittenLines(answers_file)) {
+    EXPECT_EQ(a["run"], "0123456789abcdef");
+    ++answered[a["frame_seq"].get<uint64_t>()];
+  }
+  ASSERT_EQ(answered.size(), 8u) << ReadLog("bagplay_voter.log");
+  for (const auto& [seq, n] : answered) EXPECT_EQ(n, 2) << "frame " << seq;
+  LoopbackRos::Stop(voter);
+  EXPECT_NE(ReadLog("bagplay_voter.log").find("16 frames answered"), std::string::npos)
+      << ReadLog("bagplay_voter.log");
+  EXPECT_NE(ReadLog("bagplay_voter.log").find("in 2 feed runs"), std::string::npos)
+      << ReadLog("bagplay_voter.log");
 }
 
 // Finding 4 of issue #19: nothing reported frames fed but never answered.
