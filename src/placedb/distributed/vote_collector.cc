@@ -18,6 +18,8 @@ const char* VoteStatusName(VoteStatus status) {
       return "unknown partition";
     case VoteStatus::kLate:
       return "late";
+    case VoteStatus::kInconsistent:
+      return "inconsistent";
   }
   return "?";
 }
@@ -76,7 +78,21 @@ VoteStatus VoteCollector::OnPartial(uint64_t frame_seq, int partition, const Que
   if (partition < 0 || partition >= options_.num_partitions) return VoteStatus::kUnknownPartition;
   if (Stale(frame_seq, now_ms)) return VoteStatus::kLate;
   auto [it, inserted] = pending_.try_emplace(frame_seq, Pending{now_ms, false, {}});
-  if (!it->second.partials.emplace(partition, partial).second) return VoteStatus::kDuplicate;
+  Pending& p = it->second;
+  if (p.partials.count(partition)) return VoteStatus::kDuplicate;
+  // What MergeQueryResults refuses is refused here, so that Poll never fails:
+  // each keyframe once across the frame's results, verified as the vote is.
+  std::set<int32_t> ids;
+  for (const RankedKeyframe& r : partial.ranked) {
+    if (r.verified() != options_.query.verify.enabled || !ids.insert(r.keyframe_id).second)
+      return VoteStatus::kInconsistent;
+  }
+  for (const auto& [other, result] : p.partials) {
+    for (const RankedKeyframe& r : result.ranked) {
+      if (ids.count(r.keyframe_id)) return VoteStatus::kInconsistent;
+    }
+  }
+  p.partials.emplace(partition, partial);
   return VoteStatus::kAccepted;
 }
 

@@ -45,6 +45,9 @@ enum class VoteStatus {
   kDuplicate,         // this partition already answered this frame
   kUnknownPartition,  // partition >= num_partitions
   kLate,              // the frame was answered already (complete, deadline, or evicted)
+  kInconsistent,      // a keyframe twice (in it, or in another partition's result for the
+                      // frame), or verified where the vote does not verify (or the reverse):
+                      // it cannot be merged, so the frame is answered without it
 };
 const char* VoteStatusName(VoteStatus status);
 

@@ -209,6 +209,29 @@ TEST(VoteCollectorTest, AReplayedBagIsANewRun) {
   EXPECT_EQ(c.stats().runs, 2u);
 }
 
+// Results that cannot be merged (a keyframe in two partitions' results, or
+// twice in one; verified where the vote does not verify) are refused, so the
+// frame is still answered with the rest.
+TEST(VoteCollectorTest, ResultsThatCannotBeMergedAreRefused) {
+  VoteCollector c(Three());
+  c.OnFrame(1, 0.0);
+  EXPECT_EQ(c.OnPartial(1, 0, Partial(10, 50, 20), 1.0), VoteStatus::kAccepted);
+  EXPECT_EQ(c.OnPartial(1, 1, Partial(10, 40, 30), 1.0), VoteStatus::kInconsistent);
+  QueryResult twice = Partial(20, 40, 30);
+  twice.ranked.push_back(twice.ranked[0]);
+  EXPECT_EQ(c.OnPartial(1, 1, twice, 1.0), VoteStatus::kInconsistent);
+  QueryResult unverified = Partial(20, 40, 30);
+  unverified.ranked[0].num_inliers = -1;
+  EXPECT_EQ(c.OnPartial(1, 1, unverified, 1.0), VoteStatus::kInconsistent);
+  EXPECT_EQ(c.OnPartial(1, 1, Partial(20, 40, 30), 1.0), VoteStatus::kAccepted);
+  EXPECT_EQ(c.OnPartial(1, 2, Partial(30, 40, 35), 1.0), VoteStatus::kAccepted);
+  const std::vector<FrameAnswer> ready = c.Poll(1.0);
+  ASSERT_EQ(ready.size(), 1u);
+  EXPECT_TRUE(ready[0].complete());
+  EXPECT_EQ(ready[0].result.best()->keyframe_id, 30);
+  EXPECT_STREQ(VoteStatusName(VoteStatus::kInconsistent), "inconsistent");
+}
+
 // Too many frames waiting: the oldest are answered now, in frame order.
 TEST(VoteCollectorTest, TheOldestAreAnsweredWhenTooManyWait) {
   VoteOptions o = Three();
