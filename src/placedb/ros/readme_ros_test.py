@@ -8,7 +8,9 @@ checks what it promises:
   match, the keyframe's pose and source image;
 - `rostopic echo -n 1 /answers` decodes placedb_msgs/Answer (genpy modules);
 - both feed runs into the one running voter are answered, each reporting its
-  run.
+  run;
+- installed (`cmake --install` into a scratch prefix), the nodes, launch files
+  and messages are found the same way.
 
 The block runs in a temporary folder laid out as the checkout is (build/ and
 data/ are links to this build and the data, out/demo/ holds the database), on
@@ -95,6 +97,34 @@ def stop_session(sid):
             pass
 
 
+def check_installed(build_dir, tmp):
+    """After `cmake --install`, the prefix is a ROS package path too: rospack
+    finds placedb (its launch files) and placedb_msgs, whose Python classes
+    load, with the C++ classes' MD5 sums."""
+    prefix = os.path.join(tmp, "prefix")
+    done = subprocess.run(["cmake", "--install", build_dir, "--prefix", prefix],
+                          capture_output=True, text=True)
+    if not check(done.returncode == 0, "cmake --install: " + done.stdout[-2000:] + done.stderr):
+        return
+    env = dict(os.environ)
+    env.update({"ROS_PACKAGE_PATH": os.path.join(prefix, "share") + ":/usr/share",
+                "PYTHONPATH": os.path.join(prefix, "lib", "python3", "dist-packages"),
+                "ROS_HOME": os.path.join(tmp, "ros_home")})
+    header = open(os.path.join(build_dir, "include", "placedb_msgs", "Answer.h")).read()
+    md5 = re.search(r'MD5Sum< ::placedb_msgs::Answer_<ContainerAllocator> >\s*\{.*?return "([0-9a-f]{32})"',
+                    header, re.S)
+    probe = ("import rospkg, roslib.message\n"
+             "print(rospkg.RosPack().get_path('placedb'))\n"
+             "print(roslib.message.get_message_class('placedb_msgs/Answer')._md5sum)\n")
+    out = subprocess.run(["/usr/bin/python3", "-c", probe], env=env, capture_output=True, text=True)
+    check(out.returncode == 0 and out.stdout.split() == [os.path.join(prefix, "share", "placedb"),
+                                                         md5.group(1) if md5 else "?"],
+          "installed: placedb and placedb_msgs found, Answer loads: " + out.stdout + out.stderr)
+    check(os.path.exists(os.path.join(prefix, "share", "placedb", "launch", "placedb.launch")) and
+          os.access(os.path.join(prefix, "lib", "placedb", "placedb_voter"), os.X_OK),
+          "installed: the launch files and the nodes")
+
+
 def main():
     source_dir, build_dir, placedb = sys.argv[1:4]
     script = readme_block(source_dir)
@@ -176,6 +206,7 @@ def main():
         check(len(runs.get(run, [])) == answered,
               "run %s: %d answers in the file, the feed counted %d" % (run, len(runs.get(run, [])), answered))
         check(answered >= 1, "run %s: answered" % run)
+    check_installed(build_dir, tmp)
     if not FAILURES:
         subprocess.run(["rm", "-rf", tmp])
         print("ros_readme_test: passed (%d answers, %d with a pose)" % (len(lines), len(with_pose)))
