@@ -734,7 +734,7 @@ TEST_F(RosSystemTest, ASecondFeedRunIsAnswered) {
   // told from the previous run's), and that frame is answered without it.
   const pid_t voter =
       Start({"placedb_voter", "--db", Db(), "--partitions", "2", "--deadline-ms", "3000",
-             "--answers-file", answers_file},
+             "--answers-file", answers_file, "--stats-period", "0.5"},
             "second_voter.log", ns);
   for (int i = 0; i < 2; ++i) {
     Start({"placedb_worker", "--db", Db(), "--partition", std::to_string(i) + "/2"},
@@ -793,10 +793,14 @@ TEST_F(RosSystemTest, ASecondFeedRunIsAnswered) {
     queue.callAvailable();
     return !stats.is_null() && stats["answered"] == 48 && stats["runs"] == 3;
   })) << stats.dump();
+  // The periodic report (every 0.5 s, when the counts changed) has them too.
+  EXPECT_TRUE(WaitUntil([&] {
+    return ReadLog("second_voter.log").find("]: placedb_voter: 48 frames answered (") != std::string::npos;
+  })) << ReadLog("second_voter.log");
   // Stopped by SIGTERM, the voter reports once more.
   LoopbackRos::Stop(voter);
   const std::string log = ReadLog("second_voter.log");
-  EXPECT_NE(log.find("placedb_voter: 48 frames answered ("), std::string::npos) << log;
+  EXPECT_NE(log.find("\nplacedb_voter: 48 frames answered ("), std::string::npos) << log;
   EXPECT_NE(log.find("in 3 feed runs; dropped: "), std::string::npos) << log;
   EXPECT_NE(log.find("(at shutdown)"), std::string::npos) << log;
 }

@@ -54,6 +54,7 @@ class Voter {
     // The counts, on voter_stats and in the log, when they changed.
     stats_timer_ = nh_.createSteadyTimer(ros::WallDuration(stats_period_s), &Voter::OnStatsTimer, this);
     PublishStats();
+    last_logged_ = Report();
   }
 
   // What the voter did: one line (the log at shutdown and every period).
@@ -113,16 +114,18 @@ class Voter {
 
   void OnTimer(const ros::SteadyTimerEvent&) { Publish(); }
 
+  // Every period: the counts in the log (when they changed since the last
+  // line), and on voter_stats (drops do not publish it at once).
   void OnStatsTimer(const ros::SteadyTimerEvent&) {
     const std::string report = Report();
-    if (report == last_report_) return;
+    if (report == last_logged_) return;
     ROS_INFO("%s", report.c_str());
+    last_logged_ = report;
     PublishStats();
   }
 
   // voter_stats (latched std_msgs/String): the counts as JSON.
   void PublishStats() {
-    last_report_ = Report();
     const VoteStats& s = collector_.stats();
     nlohmann::json j = {{"answered", s.answered}, {"complete", s.complete},
                         {"partial", s.partial},   {"runs", s.runs},
@@ -202,7 +205,7 @@ class Voter {
   ros_node::DropLog drops_;
   std::map<std::pair<std::string, uint64_t>, std_msgs::Header> headers_;  // by (run, frame)
   std::ofstream answers_log_;
-  std::string last_report_;
+  std::string last_logged_;
   ros::NodeHandle nh_;
   ros::Publisher answers_, poses_, stats_pub_;
   ros::Subscriber frames_sub_, partial_sub_;
