@@ -138,7 +138,6 @@ tail -n 3 "$OUT/experiment.log"
 echo
 echo "== 10. a database with poses for the ROS nodes (README, \"On ROS\"): the TUM sequence"
 "$PLACEDB" build --tum data/tum_fr3_office_32 --out "$OUT/db_tum_office" --overwrite --quiet
-"$PLACEDB" info --db "$OUT/db_tum_office" | head -n 3
 echo
 echo "demo outputs in $OUT/"
 echo "the report: $OUT/experiment/report.html"
