@@ -126,8 +126,9 @@ int main(int argc, char** argv) {
         return 1;
       }
       std::map<uint64_t, double> published, answered, work;
-      for (const auto& j : placedb::LoopbackRos::ReadJsonLines(dir + "/feed.jsonl"))
-        published[j["frame_seq"]] = j["wall_ms"];
+      for (const auto& j : placedb::LoopbackRos::ReadJsonLines(dir + "/feed.jsonl")) {
+        if (j.contains("frame_seq")) published[j["frame_seq"]] = j["wall_ms"];  // (last: the report)
+      }
       size_t complete = 0;
       for (const auto& j : placedb::LoopbackRos::ReadJsonLines(dir + "/answers.jsonl")) {
         answered[j["frame_seq"]] = j["wall_ms"];

@@ -4,7 +4,8 @@
 # truth from data/rtabmap_loop/ground_truth.csv), verification with and
 # without, small cameras, the speed benchmark, and last the paper's
 # experiments as one command (placedb experiment: feature x crop x resize x
-# verification) with its report, out/demo/experiment/report.html. Every
+# verification) with its report, out/demo/experiment/report.html, and the
+# database with poses the README's ROS section runs on. Every
 # number is measured by this run, with the build in BUILD_DIR.
 set -euo pipefail
 BUILD_DIR=${1:-build}
@@ -134,6 +135,9 @@ tail -n 3 "$OUT/experiment.log"
 # The report as a browser shows it (headless Chromium; the top 2400 px).
 /usr/bin/python3 src/placedb/report/check_report.py "$OUT/experiment/report.html" --min-figures 10 \
   --max-height 2400 --screenshot "$OUT/experiment/screenshot.png" | tail -n 2
+echo
+echo "== 10. a database with poses for the ROS nodes (README, \"On ROS\"): the TUM sequence"
+"$PLACEDB" build --tum data/tum_fr3_office_32 --out "$OUT/db_tum_office" --overwrite --quiet
 echo
 echo "demo outputs in $OUT/"
 echo "the report: $OUT/experiment/report.html"

@@ -26,6 +26,10 @@ PACKAGES=(
   ros:libtf2-msgs-dev ros:libimage-transport-dev ros:libcv-bridge-dev ros:librosbag-storage-dev
   ros:ros-std-msgs ros:ros-geometry-msgs ros:python3-genmsg ros:python3-gencpp
   ros:python3-rosmaster ros:rosout ros:catkin ros:python3-roslaunch
+  # rostopic and rosbag (the README's ROS section), genpy (placedb_msgs for
+  # Python) and the Python messages rostopic decodes ours with.
+  ros:python3-rostopic ros:python3-rosbag ros:python3-genpy
+  ros:python3-std-msgs ros:python3-geometry-msgs ros:python3-sensor-msgs
 )
 
 missing=()

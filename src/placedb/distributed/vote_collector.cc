@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include "placedb/session/place_database.h"
 #include "placedb/util/check.h"
 #include "placedb/util/options.h"
 
@@ -17,6 +18,8 @@ const char* VoteStatusName(VoteStatus status) {
       return "unknown partition";
     case VoteStatus::kLate:
       return "late";
+    case VoteStatus::kInconsistent:
+      return "inconsistent";
   }
   return "?";
 }
@@ -25,33 +28,78 @@ VoteCollector::VoteCollector(const VoteOptions& options) : options_(options) {
   PLACEDB_CHECK_OPTIONS(options_);
 }
 
-bool VoteCollector::Stale(uint64_t seq) {
-  if (!any_answered_ || seq > newest_answered_ || pending_.count(seq)) return false;
-  if (newest_answered_ - seq > static_cast<uint64_t>(options_.max_pending)) {
-    pending_.clear();  // the feed started over
-    any_answered_ = false;
-    return false;
+bool VoteCollector::Stale(uint64_t seq, double now_ms) {
+  if (pending_.count(seq)) return false;
+  if (answered_.count(seq)) return true;
+  if (any_answered_ && seq < newest_answered_ &&
+      newest_answered_ - seq > static_cast<uint64_t>(options_.max_pending)) {
+    // Far below every number answered: the source started over (one that
+    // does not announce its frames, or whose announcement comes later).
+    StartOver(now_ms, /*keep_unannounced=*/false);
+    ++stats_.runs;
   }
-  return true;
+  return false;
 }
 
-void VoteCollector::OnFrame(uint64_t frame_seq, double now_ms) {
-  if (Stale(frame_seq)) return;
-  pending_.try_emplace(frame_seq, Pending{now_ms, {}});
+void VoteCollector::StartOver(double now_ms, bool keep_unannounced) {
+  for (auto it = pending_.begin(); it != pending_.end();) {
+    if (keep_unannounced && !it->second.announced) {
+      ++it;
+      continue;
+    }
+    flushed_.push_back(Answer(it->first, std::move(it->second), now_ms));
+    it = pending_.erase(it);
+  }
+  answered_.clear();
+  any_answered_ = false;
+  any_announced_ = false;
+}
+
+VoteStatus VoteCollector::OnFrame(uint64_t frame_seq, double now_ms, const std::string& run) {
+  const bool new_run = run != run_ || (any_announced_ && frame_seq < newest_announced_);
+  if (new_run) {
+    // The old run's announced frames are answered under its id; frames seen
+    // only through partial results may be the new run's (its announcement
+    // travels on another connection than the workers' results).
+    StartOver(now_ms, /*keep_unannounced=*/true);
+    run_ = run;
+  }
+  if (new_run || stats_.runs == 0) ++stats_.runs;
+  newest_announced_ = any_announced_ ? std::max(newest_announced_, frame_seq) : frame_seq;
+  any_announced_ = true;
+  if (Stale(frame_seq, now_ms)) return VoteStatus::kLate;
+  Pending& p = pending_.try_emplace(frame_seq, Pending{now_ms, false, {}}).first->second;
+  p.announced = true;
+  return VoteStatus::kAccepted;
 }
 
 VoteStatus VoteCollector::OnPartial(uint64_t frame_seq, int partition, const QueryResult& partial,
                                     double now_ms) {
   if (partition < 0 || partition >= options_.num_partitions) return VoteStatus::kUnknownPartition;
-  if (Stale(frame_seq)) return VoteStatus::kLate;
-  auto [it, inserted] = pending_.try_emplace(frame_seq, Pending{now_ms, {}});
-  if (!it->second.partials.emplace(partition, partial).second) return VoteStatus::kDuplicate;
+  if (Stale(frame_seq, now_ms)) return VoteStatus::kLate;
+  auto [it, inserted] = pending_.try_emplace(frame_seq, Pending{now_ms, false, {}});
+  Pending& p = it->second;
+  if (p.partials.count(partition)) return VoteStatus::kDuplicate;
+  // What MergeQueryResults refuses is refused here, so that Poll never fails:
+  // each keyframe once across the frame's results, verified as the vote is.
+  std::set<int32_t> ids;
+  for (const RankedKeyframe& r : partial.ranked) {
+    if (r.verified() != options_.query.verify.enabled || !ids.insert(r.keyframe_id).second)
+      return VoteStatus::kInconsistent;
+  }
+  for (const auto& [other, result] : p.partials) {
+    for (const RankedKeyframe& r : result.ranked) {
+      if (ids.count(r.keyframe_id)) return VoteStatus::kInconsistent;
+    }
+  }
+  p.partials.emplace(partition, partial);
   return VoteStatus::kAccepted;
 }
 
-FrameAnswer VoteCollector::Answer(uint64_t seq, Pending&& p, double now_ms) const {
+FrameAnswer VoteCollector::Answer(uint64_t seq, Pending&& p, double now_ms) {
   FrameAnswer a;
   a.frame_seq = seq;
+  a.run = run_;
   std::vector<QueryResult> parts;
   for (auto& [partition, result] : p.partials) {
     a.answered.push_back(partition);
@@ -61,12 +109,15 @@ FrameAnswer VoteCollector::Answer(uint64_t seq, Pending&& p, double now_ms) cons
     if (!p.partials.count(i)) a.missing.push_back(i);
   }
   a.result = MergeQueryResults(parts, options_.query);
-  a.waited_ms = now_ms - p.first_seen_ms;
+  a.waited_ms = std::max(0.0, now_ms - p.first_seen_ms);
+  ++stats_.answered;
+  ++(a.complete() ? stats_.complete : stats_.partial);
   return a;
 }
 
 std::vector<FrameAnswer> VoteCollector::Poll(double now_ms) {
-  std::vector<FrameAnswer> ready;
+  std::vector<FrameAnswer> ready = std::move(flushed_);
+  flushed_.clear();
   std::vector<uint64_t> done;
   const size_t excess = pending_.size() > static_cast<size_t>(options_.max_pending)
                             ? pending_.size() - static_cast<size_t>(options_.max_pending)
@@ -88,8 +139,24 @@ std::vector<FrameAnswer> VoteCollector::Poll(double now_ms) {
   for (const uint64_t seq : done) {
     newest_answered_ = any_answered_ ? std::max(newest_answered_, seq) : seq;
     any_answered_ = true;
+    answered_.insert(seq);
   }
+  // The numbers answered are remembered as far back as a frame can be late
+  // (max_pending below the newest); below that, a number means a new run.
+  const uint64_t window = static_cast<uint64_t>(options_.max_pending);
+  if (any_answered_ && newest_answered_ > window)
+    answered_.erase(answered_.begin(), answered_.lower_bound(newest_answered_ - window));
   return ready;
+}
+
+void DescribeKeyframes(const PlaceDatabase& keyframes, QueryResult* result) {
+  for (RankedKeyframe& r : result->ranked) {
+    const std::optional<Keyframe> k = keyframes.FindKeyframe(r.keyframe_id);
+    if (!k) continue;
+    r.pose = k->pose;
+    r.timestamp = k->timestamp;
+    r.source = k->source;
+  }
 }
 
 }  // namespace placedb

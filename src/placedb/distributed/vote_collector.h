@@ -9,6 +9,7 @@
 
 #include <cstdint>
 #include <map>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -16,6 +17,8 @@
 #include "placedb/util/option_table.h"
 
 namespace placedb {
+
+class PlaceDatabase;
 
 struct VoteOptions {
   // Partitions the database is split into. Range [1, 4096].
@@ -41,12 +44,16 @@ enum class VoteStatus {
   kAccepted,
   kDuplicate,         // this partition already answered this frame
   kUnknownPartition,  // partition >= num_partitions
-  kLate,              // the frame was answered already (deadline, or evicted)
+  kLate,              // the frame was answered already (complete, deadline, or evicted)
+  kInconsistent,      // a keyframe twice (in it, or in another partition's result for the
+                      // frame), or verified where the vote does not verify (or the reverse):
+                      // it cannot be merged, so the frame is answered without it
 };
 const char* VoteStatusName(VoteStatus status);
 
 struct FrameAnswer {
   uint64_t frame_seq = 0;
+  std::string run;            // the run id of the feed that announced it ("" if none)
   QueryResult result;         // the merged answer
   std::vector<int> answered;  // partitions that answered, ascending
   std::vector<int> missing;   // partitions that did not
@@ -54,13 +61,29 @@ struct FrameAnswer {
   double waited_ms = 0.0;  // from first sight of the frame to the answer
 };
 
+// What the collector has done since it started: the voter reports it.
+struct VoteStats {
+  uint64_t answered = 0;  // frames answered (each once)
+  uint64_t complete = 0;  // of them, with every partition
+  uint64_t partial = 0;   // of them, without some partition
+  uint64_t runs = 0;      // feed runs followed: new run ids, or numbers that started over
+};
+
 class VoteCollector {
  public:
   explicit VoteCollector(const VoteOptions& options);
 
-  // The frame exists (announced by the feed): its deadline starts now if it
-  // has not started. A frame already answered (or stale) is ignored.
-  void OnFrame(uint64_t frame_seq, double now_ms);
+  // The frame exists, announced by the feed run `run` (an id the feed makes
+  // up, "" when it has none): its deadline starts now if it has not started.
+  // Returns kAccepted, or kLate for a frame already answered (ignored).
+  //
+  // A new run resets the collector: another run id, or a number below the
+  // newest announced (one feed announces in order over one connection, so
+  // its numbers going back mean it started over: a bag played again). The
+  // previous run's frames still pending are answered at once (next Poll),
+  // with what they have, under their run's id; the new run's frames are
+  // never refused as late because of the old run's numbers.
+  VoteStatus OnFrame(uint64_t frame_seq, double now_ms, const std::string& run = "");
   // A partial result of `partition` for the frame.
   VoteStatus OnPartial(uint64_t frame_seq, int partition, const QueryResult& partial,
                        double now_ms);
@@ -70,23 +93,44 @@ class VoteCollector {
 
   size_t pending() const { return pending_.size(); }
   const VoteOptions& options() const { return options_; }
+  const VoteStats& stats() const { return stats_; }
+  // The run frames are answered under: the last announced run id.
+  const std::string& run() const { return run_; }
 
  private:
   struct Pending {
     double first_seen_ms = 0.0;
+    bool announced = false;  // by OnFrame (else seen only through partial results)
     std::map<int, QueryResult> partials;  // by partition
   };
-  FrameAnswer Answer(uint64_t seq, Pending&& p, double now_ms) const;
-  // A frame not pending and not newer than the newest answered one: answered
-  // already, or first seen after a newer frame was answered (stale). A frame
-  // far older than that (by more than max_pending) means the feed started
-  // over: the collector does too.
-  bool Stale(uint64_t seq);
+  FrameAnswer Answer(uint64_t seq, Pending&& p, double now_ms);
+  // Answers every pending frame now (into flushed_) and forgets the numbers
+  // answered: the feed started over.
+  // (With keep_unannounced, frames seen only through partial results stay
+  // pending: they may be the new run's.)
+  void StartOver(double now_ms, bool keep_unannounced);
+  // A frame answered already in this run (its number among the last
+  // max_pending below the newest answered). A number far below the newest
+  // answered (by more than max_pending) means the source started over: the
+  // collector does too. A frame first seen after a newer one was answered
+  // (frames out of order) is not stale: it is answered by its deadline.
+  bool Stale(uint64_t seq, double now_ms);
 
   VoteOptions options_;
   std::map<uint64_t, Pending> pending_;
+  std::set<uint64_t> answered_;  // numbers answered in this run (the last max_pending)
+  std::vector<FrameAnswer> flushed_;  // answered by StartOver, returned by the next Poll
   bool any_answered_ = false;
   uint64_t newest_answered_ = 0;
+  bool any_announced_ = false;
+  uint64_t newest_announced_ = 0;
+  std::string run_;
+  VoteStats stats_;
 };
+
+// Fills each ranked keyframe's pose, timestamp and source from the database
+// (its keyframe table is enough), as a single-process query does: the
+// workers' partial results carry only ids and scores.
+void DescribeKeyframes(const PlaceDatabase& keyframes, QueryResult* result);
 
 }  // namespace placedb

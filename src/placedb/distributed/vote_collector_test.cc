@@ -9,6 +9,7 @@
 #include <random>
 
 #include "placedb/dataset/image_folder.h"
+#include "placedb/dataset/tum.h"
 #include "placedb/builder/builder.h"
 #include "placedb/session/place_database.h"
 #include "placedb/util/testing.h"
@@ -102,12 +103,133 @@ TEST(VoteCollectorTest, LateDuplicateAndUnknownAreRefused) {
   ASSERT_EQ(ready.size(), 1u);
   EXPECT_EQ(ready[0].frame_seq, 1u);
   EXPECT_EQ(c.OnPartial(1, 1, Partial(1, 1, 1), 101.0), VoteStatus::kLate);
-  // A frame first seen after a newer one was answered is stale.
-  c.OnFrame(0, 102.0);
+  // A frame answered is late for its announcement too.
+  EXPECT_EQ(c.OnFrame(2, 102.0), VoteStatus::kLate);
   EXPECT_EQ(c.pending(), 0u);
-  EXPECT_EQ(c.OnPartial(0, 1, Partial(1, 1, 1), 102.0), VoteStatus::kLate);
   // A newer frame is fine.
   EXPECT_EQ(c.OnPartial(3, 1, Partial(1, 1, 1), 103.0), VoteStatus::kAccepted);
+  EXPECT_EQ(c.stats().answered, 2u);
+  EXPECT_EQ(c.stats().complete, 1u);
+  EXPECT_EQ(c.stats().partial, 1u);
+}
+
+// Frames out of order (a bag played fast, a worker's results before the
+// announcement): a frame first seen after a newer one was answered is still
+// answered, by its deadline; only frames answered already are late.
+TEST(VoteCollectorTest, AFrameSeenAfterANewerOneIsStillAnswered) {
+  VoteCollector c(Three());
+  EXPECT_EQ(c.OnFrame(0, 0.0), VoteStatus::kAccepted);
+  EXPECT_EQ(c.OnFrame(2, 0.0), VoteStatus::kAccepted);
+  for (int p = 0; p < 3; ++p) c.OnPartial(2, p, Partial(10 + p, 10, 5), 1.0);
+  ASSERT_EQ(c.Poll(1.0).size(), 1u);  // frame 2
+  // Frame 1's results come after frame 2 was answered: it waits for the
+  // others or its deadline.
+  EXPECT_EQ(c.OnPartial(1, 0, Partial(1, 1, 1), 2.0), VoteStatus::kAccepted);
+  EXPECT_EQ(c.pending(), 2u);
+  const std::vector<FrameAnswer> ready = c.Poll(102.0);
+  ASSERT_EQ(ready.size(), 2u);
+  EXPECT_EQ(ready[0].frame_seq, 0u);
+  EXPECT_EQ(ready[1].frame_seq, 1u);
+  EXPECT_EQ(ready[1].answered, (std::vector<int>{0}));
+  EXPECT_EQ(c.OnPartial(1, 1, Partial(1, 1, 1), 103.0), VoteStatus::kLate);
+  EXPECT_EQ(c.OnPartial(2, 1, Partial(1, 1, 1), 103.0), VoteStatus::kLate);
+  EXPECT_EQ(c.stats().answered, 3u);
+  EXPECT_EQ(c.stats().complete, 1u);
+  EXPECT_EQ(c.stats().partial, 2u);
+}
+
+// A second run of the feed (a new run id) into a running collector: its
+// frames, numbered from 0 again, are answered, not refused as late; the
+// first run's frames still pending are answered at once under its id.
+TEST(VoteCollectorTest, ANewRunIsAnswered) {
+  VoteCollector c(Three());
+  for (uint64_t f = 0; f < 32; ++f) {
+    EXPECT_EQ(c.OnFrame(f, 0.0, "run-a"), VoteStatus::kAccepted);
+    if (f < 31) {
+      for (int p = 0; p < 3; ++p) c.OnPartial(f, p, Partial(10 + p, 10, 5), 0.0);
+    }
+  }
+  std::vector<FrameAnswer> ready = c.Poll(1.0);
+  ASSERT_EQ(ready.size(), 31u);
+  EXPECT_EQ(ready[30].run, "run-a");
+  EXPECT_EQ(c.pending(), 1u);  // frame 31 waits for its partitions
+  EXPECT_EQ(c.stats().runs, 1u);
+  EXPECT_EQ(c.run(), "run-a");
+  // Run b. A result for frame 0 before run b's announcement cannot be told
+  // from run a's late one: it is refused. Frame 40's (a number run a did
+  // not answer) stays pending for run b.
+  EXPECT_EQ(c.OnPartial(0, 0, Partial(7, 10, 5), 2.0), VoteStatus::kLate);
+  EXPECT_EQ(c.OnPartial(40, 0, Partial(7, 10, 5), 2.0), VoteStatus::kAccepted);
+  EXPECT_EQ(c.OnFrame(0, 2.0, "run-b"), VoteStatus::kAccepted);
+  EXPECT_EQ(c.stats().runs, 2u);
+  EXPECT_EQ(c.run(), "run-b");
+  ready = c.Poll(2.0);
+  ASSERT_EQ(ready.size(), 1u);  // run a's frame 31, at once, without its partitions
+  EXPECT_EQ(ready[0].frame_seq, 31u);
+  EXPECT_EQ(ready[0].run, "run-a");
+  EXPECT_FALSE(ready[0].complete());
+  for (int p = 0; p < 3; ++p)
+    EXPECT_EQ(c.OnPartial(0, p, Partial(7 + p, 10, 5), 3.0), VoteStatus::kAccepted);
+  for (int p = 1; p < 3; ++p)
+    EXPECT_EQ(c.OnPartial(40, p, Partial(7 + p, 10, 5), 3.0), VoteStatus::kAccepted);
+  ready = c.Poll(3.0);
+  ASSERT_EQ(ready.size(), 2u);
+  EXPECT_EQ(ready[0].frame_seq, 0u);
+  EXPECT_EQ(ready[0].run, "run-b");
+  EXPECT_TRUE(ready[0].complete());
+  EXPECT_EQ(ready[1].frame_seq, 40u);
+  EXPECT_TRUE(ready[1].complete());
+  for (uint64_t f = 1; f < 32; ++f) {
+    EXPECT_EQ(c.OnFrame(f, 4.0, "run-b"), VoteStatus::kAccepted) << f;
+    for (int p = 0; p < 3; ++p)
+      EXPECT_EQ(c.OnPartial(f, p, Partial(10 + p, 10, 5), 4.0), VoteStatus::kAccepted) << f;
+  }
+  EXPECT_EQ(c.Poll(4.0).size(), 31u);
+  EXPECT_EQ(c.stats().answered, 65u);
+  EXPECT_EQ(c.stats().complete, 64u);
+  EXPECT_EQ(c.stats().partial, 1u);
+}
+
+// The same run id numbering from 0 again (a bag of the feed played twice:
+// its announcements keep their run id and numbers) is a new run too.
+TEST(VoteCollectorTest, AReplayedBagIsANewRun) {
+  VoteCollector c(Three());
+  for (uint64_t f = 0; f < 8; ++f) {
+    c.OnFrame(f, 0.0, "bag");
+    for (int p = 0; p < 3; ++p) c.OnPartial(f, p, Partial(10 + p, 10, 5), 0.0);
+  }
+  EXPECT_EQ(c.Poll(0.0).size(), 8u);
+  EXPECT_EQ(c.OnFrame(0, 1.0, "bag"), VoteStatus::kAccepted);
+  EXPECT_EQ(c.stats().runs, 2u);
+  for (int p = 0; p < 3; ++p)
+    EXPECT_EQ(c.OnPartial(0, p, Partial(10 + p, 10, 5), 1.0), VoteStatus::kAccepted);
+  EXPECT_EQ(c.Poll(1.0).size(), 1u);
+  // The same announcement again is not a new run.
+  EXPECT_EQ(c.OnFrame(0, 2.0, "bag"), VoteStatus::kLate);
+  EXPECT_EQ(c.stats().runs, 2u);
+}
+
+// Results that cannot be merged (a keyframe in two partitions' results, or
+// twice in one; verified where the vote does not verify) are refused, so the
+// frame is still answered with the rest.
+TEST(VoteCollectorTest, ResultsThatCannotBeMergedAreRefused) {
+  VoteCollector c(Three());
+  c.OnFrame(1, 0.0);
+  EXPECT_EQ(c.OnPartial(1, 0, Partial(10, 50, 20), 1.0), VoteStatus::kAccepted);
+  EXPECT_EQ(c.OnPartial(1, 1, Partial(10, 40, 30), 1.0), VoteStatus::kInconsistent);
+  QueryResult twice = Partial(20, 40, 30);
+  twice.ranked.push_back(twice.ranked[0]);
+  EXPECT_EQ(c.OnPartial(1, 1, twice, 1.0), VoteStatus::kInconsistent);
+  QueryResult unverified = Partial(20, 40, 30);
+  unverified.ranked[0].num_inliers = -1;
+  EXPECT_EQ(c.OnPartial(1, 1, unverified, 1.0), VoteStatus::kInconsistent);
+  EXPECT_EQ(c.OnPartial(1, 1, Partial(20, 40, 30), 1.0), VoteStatus::kAccepted);
+  EXPECT_EQ(c.OnPartial(1, 2, Partial(30, 40, 35), 1.0), VoteStatus::kAccepted);
+  const std::vector<FrameAnswer> ready = c.Poll(1.0);
+  ASSERT_EQ(ready.size(), 1u);
+  EXPECT_TRUE(ready[0].complete());
+  EXPECT_EQ(ready[0].result.best()->keyframe_id, 30);
+  EXPECT_STREQ(VoteStatusName(VoteStatus::kInconsistent), "inconsistent");
 }
 
 // Too many frames waiting: the oldest are answered now, in frame order.
@@ -134,6 +256,38 @@ TEST(VoteCollectorTest, AFeedThatStartsOverIsFollowed) {
   EXPECT_EQ(c.OnPartial(45, 0, Partial(1, 1, 1), 1001), VoteStatus::kLate);     // just stale
   EXPECT_EQ(c.OnPartial(0, 0, Partial(1, 1, 1), 1001), VoteStatus::kAccepted);  // a new run
   EXPECT_EQ(c.pending(), 1u);
+  EXPECT_EQ(c.OnPartial(45, 0, Partial(1, 1, 1), 1002), VoteStatus::kAccepted);  // its frame 45
+}
+
+// The voter fills the answer's keyframes from the keyframe table: pose,
+// timestamp and source, as the single-process query has them.
+TEST(VoteCollectorTest, KeyframesAreDescribedFromTheTable) {
+  testing_util::TempDir tmp;
+  BuildOptions build;
+  build.progress = false;
+  BuildDatabase(ReadTumSequence(PLACEDB_DATA_DIR "/tum_fr3_office_mini"), build, tmp.Path("db"),
+                "tum");
+  const PlaceDatabase whole = PlaceDatabase::Open(tmp.Path("db"));
+  OpenOptions table;
+  table.keyframe_table = true;
+  const PlaceDatabase keyframes = PlaceDatabase::Open(tmp.Path("db"), table);
+  const std::optional<Keyframe> k = whole.FindKeyframe(whole.keyframe_ids().at(1));
+  ASSERT_TRUE(k && k->pose);
+  QueryResult r;
+  RankedKeyframe ranked;
+  ranked.keyframe_id = k->id;
+  r.ranked.push_back(ranked);
+  ranked.keyframe_id = 999999;  // not in the database: left as it is
+  r.ranked.push_back(ranked);
+  DescribeKeyframes(keyframes, &r);
+  ASSERT_TRUE(r.ranked[0].pose.has_value());
+  EXPECT_EQ(r.ranked[0].pose->translation, k->pose->translation);
+  EXPECT_EQ(r.ranked[0].timestamp, k->timestamp);
+  EXPECT_GT(r.ranked[0].timestamp, 0.0);
+  EXPECT_EQ(r.ranked[0].source, k->source);
+  EXPECT_FALSE(r.ranked[0].source.empty());
+  EXPECT_FALSE(r.ranked[1].pose.has_value());
+  EXPECT_EQ(r.ranked[1].source, "");
 }
 
 TEST(VoteCollectorTest, OptionsAreChecked) {

@@ -11,7 +11,11 @@
 #include "placedb/ros/node_common.h"
 
 int main(int argc, char** argv) {
-  CLI::App app{"placedb_extractor: publishes the features of every image for the workers"};
+  CLI::App app{"placedb_extractor: publishes the features of every image for the workers",
+               "placedb_extractor"};
+  placedb::ros_node::AddExamples(
+      app, {"placedb_extractor --db out/demo/db_tum_office --cpu 1",
+            "roslaunch placedb placedb.launch db:=$PWD/out/demo/db_tum_office input:=features"});
   std::string dir;
   int cpu = -1;
   app.add_option("--db", dir, "database directory (its extractor settings are used)")->required();

@@ -1,9 +1,12 @@
 // placedb_feed: publishes frames (an image folder or list, a TUM folder, or a
 // bag) on the image topic, at a rate or as fast as the system answers. Each
 // frame's header carries its sequence number (seq, from 0) and the source's
-// timestamp; the same header goes first on the topic `frames`, for the
-// voter's deadlines. (roscpp numbers header.seq per publisher, one message
-// per frame on each: the image's seq is the frame's number.)
+// timestamp; the same numbers go first on the topic `frames`, for the
+// voter's deadlines, with the feed's run id as frame_id: a run id the voter
+// has not seen starts a new run there. (roscpp numbers header.seq per
+// publisher, one message per frame on each: the image's seq is the frame's
+// number.) At its end the feed reports its run: frames sent, answered
+// (complete, partial) and never answered.
 #include <image_transport/image_transport.h>
 #include <placedb_msgs/Answer.h>
 #include <ros/callback_queue.h>
@@ -11,9 +14,13 @@
 #include <sensor_msgs/CompressedImage.h>
 #include <std_msgs/Header.h>
 
+#include <fmt/format.h>
+
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <random>
+#include <set>
 
 #include "placedb/cli/flags.h"
 #include "placedb/dataset/bag/image_message.h"
@@ -21,13 +28,16 @@
 
 int main(int argc, char** argv) {
   namespace cli = placedb::cli;
-  CLI::App app{"placedb_feed: publishes frames for the placedb workers"};
+  CLI::App app{"placedb_feed: publishes frames for the placedb workers", "placedb_feed"};
+  placedb::ros_node::AddExamples(
+      app, {"placedb_feed --tum data/tum_fr3_office_32 --wait-for 3",
+            "placedb_feed --images data/rtabmap_loop/images --rate 10 --log-file feed.jsonl"});
   cli::SourceArgs source;
   double rate = 0.0;
   double answer_timeout_ms = 2000.0;
   int wait_for = 0;
   int loops = 1;
-  std::string compress, frame_id = "camera", log_file;
+  std::string compress, frame_id = "camera", log_file, run_id;
   source.Add(&app);
   app.add_option("--rate", rate,
                  "frames per second; 0: each frame when the previous one is "
@@ -46,7 +56,11 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"jpeg", "png"}));
   app.add_option("--frame-id", frame_id, "frame_id of the images")->capture_default_str();
   app.add_option("--log-file", log_file,
-                 "append each published frame (seq, wall time) as a JSON line");
+                 "append each published frame (seq, wall time) as a JSON line, and the run's "
+                 "report last");
+  app.add_option("--run-id", run_id,
+                 "this run's id, the frame_id of the announcements on frames (default: made up, "
+                 "16 hex digits); a run id the voter has not seen resets it");
   int code = 0;
   if (!placedb::ros_node::Init(
           &argc, argv, [] { return std::string("placedb_feed"); }, app, &code))
@@ -65,17 +79,28 @@ int main(int argc, char** argv) {
     if (!compress.empty())
       compressed = nh.advertise<sensor_msgs::CompressedImage>("image/compressed", 4);
     ros::Publisher announce = nh.advertise<std_msgs::Header>("frames", 100);
-    uint64_t answered = 0;
-    bool have_answer = false;
+    if (run_id.empty()) {
+      std::random_device random;
+      run_id = fmt::format("{:08x}{:08x}", random(), random());
+    }
+    if (run_id.size() > 256) throw placedb::InvalidArgument("`run_id` is longer than 256 bytes");
+    // This run's answers (the voter's answers carry the run id of the frames'
+    // announcements; answers of other runs, such as the latched last one of
+    // the run before, are not this run's). A frame counts once.
+    std::set<uint64_t> answered;
+    uint64_t complete = 0, partial = 0;
     ros::Subscriber answers = nh.subscribe<placedb_msgs::Answer>(
         "answers", 100,
         [&](const placedb_msgs::AnswerConstPtr& a) {
-          answered = std::max(answered, a->frame_seq);
-          have_answer = true;
+          if (a->run_id != run_id || !answered.insert(a->frame_seq).second) return;
+          ++(a->complete ? complete : partial);
         },
         ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
     std::ofstream log;
-    if (!log_file.empty()) log.open(log_file, std::ios::app);
+    if (!log_file.empty()) {
+      log.open(log_file, std::ios::app);
+      if (!log.good()) throw placedb::IoError("cannot write " + log_file);
+    }
     // Subscribers first, or the first frames go nowhere: the workers (on the
     // image or compressed topic) and the voter (on frames).
     while (
@@ -86,7 +111,8 @@ int main(int argc, char** argv) {
       ros::WallDuration(0.01).sleep();
       ros::spinOnce();
     }
-    ROS_INFO("placedb_feed: %zu frames from %s, %s", frames.size(), source.Describe().c_str(),
+    ROS_INFO("placedb_feed: run %s: %zu frames from %s, %s", run_id.c_str(), frames.size(),
+             source.Describe().c_str(),
              rate > 0 ? (std::to_string(rate) + " per second").c_str() : "paced by the answers");
     ros::WallDuration(0.2).sleep();  // let subscriptions settle
     uint64_t seq = 0;
@@ -108,7 +134,9 @@ int main(int argc, char** argv) {
         header.stamp = f.timestamp >= 0 ? ros::Time(f.timestamp) : ros::Time::now();
         header.frame_id = frame_id;
         header.seq = static_cast<uint32_t>(seq);
-        announce.publish(header);
+        std_msgs::Header announcement = header;
+        announcement.frame_id = run_id;
+        announce.publish(announcement);
         images.publish(placedb::BgrToImageMessage(image, header));
         if (compressed) {
           sensor_msgs::CompressedImage c;
@@ -119,6 +147,7 @@ int main(int argc, char** argv) {
         }
         if (log.is_open()) {
           log << nlohmann::json{{"frame_seq", seq},
+                                {"run", run_id},
                                 {"frame_id", f.id},
                                 {"wall_ms", placedb::ros_node::WallMs()}}
                      .dump()
@@ -131,7 +160,7 @@ int main(int argc, char** argv) {
         } else {
           const ros::WallTime until =
               ros::WallTime::now() + ros::WallDuration(answer_timeout_ms / 1000.0);
-          while (ros::ok() && !(have_answer && answered >= seq) && ros::WallTime::now() < until) {
+          while (ros::ok() && !answered.count(seq) && ros::WallTime::now() < until) {
             ros::spinOnce();
             ros::WallDuration(0.0002).sleep();
           }
@@ -142,12 +171,37 @@ int main(int argc, char** argv) {
     // Give the last frames' answers a moment before the feed goes away.
     const ros::WallTime until =
         ros::WallTime::now() + ros::WallDuration(answer_timeout_ms / 1000.0);
-    while (ros::ok() && seq > 0 && !(have_answer && answered >= seq - 1) &&
-           ros::WallTime::now() < until) {
+    while (ros::ok() && answered.size() < seq && ros::WallTime::now() < until) {
       ros::spinOnce();
       ros::WallDuration(0.001).sleep();
     }
-    ROS_INFO("placedb_feed: published %lu frames", static_cast<unsigned long>(seq));
+    // The run's report: one line, and the log file's last line.
+    std::vector<uint64_t> never;
+    for (uint64_t i = 0; i < seq; ++i) {
+      if (!answered.count(i)) never.push_back(i);
+    }
+    std::string line = fmt::format(
+        "placedb_feed: run {}: {} frames sent, {} answered ({} complete, {} partial), {} never "
+        "answered",
+        run_id, seq, seq - never.size(), complete, partial, never.size());
+    if (!never.empty()) {
+      line += " (frames";
+      for (size_t i = 0; i < never.size() && i < 20; ++i) line += " " + std::to_string(never[i]);
+      line += never.size() > 20 ? " ...)" : ")";
+    }
+    ROS_INFO("%s", line.c_str());
+    if (log.is_open()) {
+      log << nlohmann::json{{"run", run_id},
+                            {"frames_sent", seq},
+                            {"answered", seq - never.size()},
+                            {"complete", complete},
+                            {"partial", partial},
+                            {"never_answered", never.size()},
+                            {"never_answered_frames", never}}
+                 .dump()
+          << "\n"
+          << std::flush;
+    }
     return 0;
   });
 }

@@ -163,6 +163,7 @@ placedb_msgs::Answer AnswerToMessage(const FrameAnswer& a, const PlaceDatabase& 
   placedb_msgs::Answer m;
   m.header = header;
   m.frame_seq = a.frame_seq;
+  m.run_id = a.run;
   m.matched = a.result.matched;
   m.keyframe_id = -1;
   if (const RankedKeyframe* best = a.result.best()) {

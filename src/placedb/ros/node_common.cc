@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <cstring>
 #include <thread>
@@ -18,7 +19,16 @@ namespace ros_node {
 namespace {
 // --verbose, for RunNode's error line (a node parses its flags once).
 bool verbose = false;
+
+// SIGTERM as roscpp's SIGINT handler: ask the node to shut down.
+void OnSigterm(int) { ros::requestShutdown(); }
 }  // namespace
+
+void AddExamples(CLI::App& app, const std::vector<std::string>& examples) {
+  std::string footer = examples.size() == 1 ? "Example:" : "Examples:";
+  for (const std::string& e : examples) footer += "\n  " + e;
+  app.footer(footer);
+}
 
 bool Init(int* argc, char** argv, const std::function<std::string()>& name, CLI::App& app,
           int* exit_code) {
@@ -36,16 +46,17 @@ bool Init(int* argc, char** argv, const std::function<std::string()>& name, CLI:
     *exit_code = app.exit(e);
     return false;
   } catch (const CLI::ParseError& e) {
-    std::fprintf(stderr, "%s: error: %s (see --help)\n", argv[0], e.what());
+    std::fprintf(stderr, "%s: error: %s (see --help)\n", app.get_name().c_str(), e.what());
     *exit_code = cli::kExitInput;
     return false;
   } catch (...) {
     // A flag's value the option table refused (InvalidArgument naming it).
-    *exit_code = cli::ReportCurrentException(argv[0], verbose);
+    *exit_code = cli::ReportCurrentException(app.get_name(), verbose);
     return false;
   }
   if (verbose) spdlog::set_level(spdlog::level::debug);
   ros::init(*argc, argv, name());
+  std::signal(SIGTERM, OnSigterm);
   return true;
 }
 
@@ -82,6 +93,13 @@ void DropLog::Drop(const std::string& cause, const std::string& detail) {
              n == 1 ? "; further drops for this cause are counted"
                     : (" [" + std::to_string(n) + " so far]").c_str());
   }
+}
+
+std::string DropLog::Summary() const {
+  if (counts_.empty()) return "none";
+  std::string text;
+  for (const auto& [cause, n] : counts_) text += (text.empty() ? "" : ", ") + cause + " " + std::to_string(n);
+  return text;
 }
 
 std::string CauseOf(const std::string& message) {

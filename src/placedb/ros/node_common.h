@@ -9,6 +9,7 @@
 #include <functional>
 #include <map>
 #include <string>
+#include <vector>
 
 namespace placedb {
 namespace ros_node {
@@ -18,9 +19,15 @@ namespace ros_node {
 // known (a worker is placedb_worker_<i>; __name:= still overrides it). A bad
 // flag prints one line and exits 1, --help exits 0. Every node takes
 // --verbose (debug logging; an error line names where placedb raised it).
-// Returns false when the node should exit with `*exit_code`.
+// SIGTERM stops the node as SIGINT does (its spin returns, it reports and
+// exits 0). Returns false when the node should exit with `*exit_code`.
 bool Init(int* argc, char** argv, const std::function<std::string()>& name, CLI::App& app,
           int* exit_code);
+
+// Ends the node's help with `examples` (one command a line). (Each node's
+// CLI::App is named after its program, {description, "placedb_feed"}, so
+// that its usage line names it.)
+void AddExamples(CLI::App& app, const std::vector<std::string>& examples);
 
 // Runs a node's work and returns its exit code: an exception becomes one line
 // "<program>: error: <message>" (option names as flags) and the code of its
@@ -39,6 +46,10 @@ class DropLog {
   explicit DropLog(std::string node) : node_(std::move(node)) {}
   void Drop(const std::string& cause, const std::string& detail);
   uint64_t dropped() const { return total_; }
+  // Drops by cause.
+  const std::map<std::string, uint64_t>& counts() const { return counts_; }
+  // "none", or "late 3, database 1" (causes in name order).
+  std::string Summary() const;
 
  private:
   std::string node_;

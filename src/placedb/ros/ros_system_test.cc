@@ -22,6 +22,7 @@
 #include <rosbag/bag.h>
 #include <sensor_msgs/CompressedImage.h>
 #include <sensor_msgs/Image.h>
+#include <std_msgs/String.h>
 #include <signal.h>
 #include <sys/wait.h>
 #include <tf2_msgs/TFMessage.h>
@@ -339,6 +340,30 @@ TEST_F(RosSystemTest, MalformedMessagesAreDroppedOncePerCause) {
   const std::string voter_log = ReadLog("hostile_voter.log");
   EXPECT_EQ(count(voter_log, "(database"), 1u) << voter_log;
   EXPECT_EQ(count(voter_log, "(partition"), 1u) << voter_log;
+  // Every drop is counted by its cause: on voter_stats (latched) and in the
+  // voter's line at shutdown.
+  ros::CallbackQueue queue;
+  ros::NodeHandle stats_nh;
+  stats_nh.setCallbackQueue(&queue);
+  nlohmann::json stats;
+  const ros::Subscriber stats_sub = stats_nh.subscribe<std_msgs::String>(
+      ns + "/voter_stats", 10,
+      [&](const std_msgs::StringConstPtr& m) { stats = nlohmann::json::parse(m->data); },
+      ros::VoidConstPtr(), ros::TransportHints());
+  EXPECT_TRUE(WaitUntil([&] {
+    queue.callAvailable();
+    return !stats.is_null() && stats["dropped"].value("database", 0) >= 5 &&
+           stats["dropped"].value("partition", 0) >= 5 && stats["answered"].get<int>() >= 1;
+  })) << stats.dump();
+  LoopbackRos::Stop(voter);
+  const std::string at_shutdown = ReadLog("hostile_voter.log");
+  EXPECT_NE(at_shutdown.find("(at shutdown)"), std::string::npos) << at_shutdown;
+  const size_t line = at_shutdown.rfind("dropped: ");
+  ASSERT_NE(line, std::string::npos) << at_shutdown;
+  EXPECT_NE(at_shutdown.find("database " + std::to_string(stats["dropped"]["database"].get<int>()), line),
+            std::string::npos)
+      << at_shutdown;
+  EXPECT_NE(at_shutdown.find("partition ", line), std::string::npos) << at_shutdown;
   const std::string features_log = ReadLog("hostile_features_worker.log");
   EXPECT_EQ(count(features_log, "(the query has surf features"), 1u) << features_log;
   EXPECT_EQ(count(features_log, "(descriptors"), 1u) << features_log;
@@ -358,7 +383,7 @@ TEST_F(RosSystemTest, TheLaunchFileRunsTheSystem) {
   const pid_t launch = Start(
       {"roslaunch", "placedb", "placedb.launch", "db:=" + Db(), "workers:=2", "input:=features",
        "deadline_ms:=" + kNoDeadline, "images:=" + kImages,
-       "answers_file:=" + Path("launch_answers.jsonl"),
+       "answers_file:=" + Path("launch_answers.jsonl"), "feed_required:=true",
        "feed_args:=--rate 0 --first 70 --answer-timeout-ms " + kNoDeadline},
       "launch.log", ns);
   const std::vector<std::string> workers = {ns + "/placedb_worker_0", ns + "/placedb_worker_1"};
@@ -368,7 +393,7 @@ TEST_F(RosSystemTest, TheLaunchFileRunsTheSystem) {
   ASSERT_TRUE(WaitLinked({ns + "/placedb_voter"}, ns + "/answers", {ns + "/placedb_feed"}))
       << ReadLog("launch.log");
   const ros::Subscriber gate = OpenGate(ns);
-  // The feed is required: when it has published its frames, roslaunch ends.
+  // feed_required:=true: when the feed has published its frames, roslaunch ends.
   EXPECT_EQ(WaitExit(launch, kRunLimit), 0) << ReadLog("launch.log");
   const std::vector<nlohmann::json> answers = WaitLines(Path("launch_answers.jsonl"), 15);
   ASSERT_EQ(answers.size(), 15u) << ReadLog("launch.log");
@@ -377,6 +402,319 @@ TEST_F(RosSystemTest, TheLaunchFileRunsTheSystem) {
     EXPECT_TRUE(a["complete"].get<bool>());
     ExpectSameAnswer(a, expected[29 + a["frame_seq"].get<uint64_t>()], "launched frame");
   }
+}
+
+// Points roslaunch at the build tree's package placedb.
+void UseTheBuildTree() {
+  const std::string tree = PLACEDB_ROS_TREE;
+  ::setenv("ROS_PACKAGE_PATH", (tree + "/share").c_str(), 1);
+  const char* prefix = std::getenv("CMAKE_PREFIX_PATH");
+  if (prefix == nullptr || std::string(prefix).find(tree) == std::string::npos)
+    ::setenv("CMAKE_PREFIX_PATH", (tree + (prefix ? std::string(":") + prefix : "")).c_str(), 1);
+}
+
+// feed_required defaults to false: when the feed has published its frames
+// (and exited), the voter and the workers stay up for more feeds.
+TEST_F(RosSystemTest, TheLaunchStaysUpAfterTheFeedByDefault) {
+  UseTheBuildTree();
+  const std::string ns = "/launched_stays";
+  const pid_t launch = Start(
+      {"roslaunch", "placedb", "placedb.launch", "db:=" + Db(), "workers:=2",
+       "deadline_ms:=" + kNoDeadline, "images:=" + kImages,
+       "answers_file:=" + Path("stays_answers.jsonl"),
+       "feed_args:=--rate 0 --first 80 --answer-timeout-ms " + kNoDeadline},
+      "launch_stays.log", ns);
+  const std::vector<std::string> workers = {ns + "/placedb_worker_0", ns + "/placedb_worker_1"};
+  ASSERT_TRUE(WaitLinked(workers, ns + "/partial_results", {ns + "/placedb_voter"}))
+      << ReadLog("launch_stays.log");
+  ASSERT_TRUE(WaitLinked({ns + "/placedb_voter"}, ns + "/answers", {ns + "/placedb_feed"}))
+      << ReadLog("launch_stays.log");
+  const ros::Subscriber gate = OpenGate(ns);
+  ASSERT_EQ(WaitLines(Path("stays_answers.jsonl"), 5).size(), 5u) << ReadLog("launch_stays.log");
+  // roslaunch reports the feed's end; then the launch is still up.
+  ASSERT_TRUE(WaitUntil([&] {
+    // "[launched_stays/placedb_feed-5] process has finished cleanly"
+    const std::string log = ReadLog("launch_stays.log");
+    const size_t feed = log.find("/placedb_feed-");
+    return feed != std::string::npos &&
+           log.find("] process has finished cleanly", feed) != std::string::npos;
+  })) << ReadLog("launch_stays.log");
+  EXPECT_EQ(LoopbackRos::WaitExit(launch, 0.5), -1) << ReadLog("launch_stays.log");
+  EXPECT_TRUE(Alive(launch));
+  EXPECT_TRUE(Linked(ns + "/placedb_worker_0", ns + "/partial_results", ns + "/placedb_voter"));
+  LoopbackRos::Stop(launch);
+}
+
+// A database that does not exist: each node says so in one line and exits 1;
+// the voter is required, so roslaunch ends the launch (and says why) instead
+// of idling with nothing running.
+TEST_F(RosSystemTest, ALaunchWithoutADatabaseEnds) {
+  UseTheBuildTree();
+  const std::string ns = "/launched_nodb";
+  const pid_t launch =
+      Start({"roslaunch", "placedb", "placedb.launch", "db:=" + Path("no_such_db"), "workers:=2"},
+            "launch_nodb.log", ns);
+  EXPECT_NE(WaitExit(launch, kLimit), -1) << ReadLog("launch_nodb.log");
+  const std::string log = ReadLog("launch_nodb.log");
+  EXPECT_NE(log.find("placedb_voter: error: no database at " + Path("no_such_db")), std::string::npos)
+      << log;
+  EXPECT_NE(log.find("REQUIRED process ["), std::string::npos) << log;
+  // Run alone, a node says it in one line and exits 1.
+  for (const std::string node : {"placedb_voter", "placedb_worker", "placedb_extractor"}) {
+    const std::string out = Path(node + "_nodb.log");
+    const std::string cmd = kNodes + node + " --db " + Path("no_such_db") +
+                            (node == "placedb_voter" ? " --partitions 2" : "") +
+                            (node == "placedb_worker" ? " --partition 0/2" : "") + " > " + out +
+                            " 2>&1";
+    const int status = std::system(cmd.c_str());
+    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1) << node << " " << status;
+    EXPECT_EQ(ReadLog(node + "_nodb.log"),
+              node + ": error: no database at " + Path("no_such_db") + " (no such directory)\n");
+  }
+}
+
+// Each node's help names it and ends with examples; a bad flag is one line
+// that names it.
+TEST_F(RosSystemTest, NodeHelpNamesTheNode) {
+  for (const std::string node : {"placedb_feed", "placedb_worker", "placedb_voter", "placedb_extractor"}) {
+    const std::string out = Path(node + "_help.log");
+    ASSERT_EQ(std::system((kNodes + node + " --help > " + out + " 2>&1").c_str()), 0) << node;
+    const std::string help = ReadLog(node + "_help.log");
+    EXPECT_EQ(help.rfind(node + ": ", 0), 0u) << help;
+    EXPECT_NE(help.find("\nUsage: " + node + " [OPTIONS]\n"), std::string::npos) << help;
+    const size_t examples = help.rfind("\nExamples:\n");
+    ASSERT_NE(examples, std::string::npos) << help;
+    // Only example lines after it, two, each a command.
+    std::vector<std::string> lines;
+    for (size_t at = examples + 11, end; (end = help.find('\n', at)) != std::string::npos; at = end + 1) {
+      if (end > at) lines.push_back(help.substr(at, end - at));
+    }
+    ASSERT_EQ(lines.size(), 2u) << help;
+    for (const std::string& line : lines) {
+      EXPECT_TRUE(line.rfind("  " + node + " ", 0) == 0 || line.rfind("  roslaunch placedb ", 0) == 0)
+          << line;
+    }
+    const int status = std::system((kNodes + node + " --no-such-flag > " + out + " 2>&1").c_str());
+    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1) << node;
+    const std::string error = ReadLog(node + "_help.log");
+    EXPECT_EQ(error.rfind(node + ": error: ", 0), 0u) << error;
+    EXPECT_EQ(std::count(error.begin(), error.end(), '\n'), 1) << error;
+  }
+}
+
+// The last line of a feed's --log-file: its run's report.
+nlohmann::json FeedReport(const std::string& path) {
+  const std::vector<nlohmann::json> lines = LoopbackRos::ReadJsonLines(path);
+  if (lines.empty() || !lines.back().contains("frames_sent")) return nlohmann::json();
+  return lines.back();
+}
+
+// Finding 4 of issue #19: a second feed into a running voter was answered
+// with silence (its numbers, from 0 again, were "late"). Each feed run has a
+// run id; a new one resets the voter, and so does the same run's numbering
+// going back (a bag of the feed played again keeps its run id and numbers).
+// Every frame of each of the three runs is answered once, under its run.
+TEST_F(RosSystemTest, ASecondFeedRunIsAnswered) {
+  const std::string ns = "/second";
+  const std::string answers_file = Path("second_answers.jsonl");
+  // A deadline in reach: a worker's result for frame 0 of a new run that
+  // comes before the run's announcement is refused as late (it cannot be
+  // told from the previous run's), and that frame is answered without it.
+  const pid_t voter =
+      Start({"placedb_voter", "--db", Db(), "--partitions", "2", "--deadline-ms", "3000",
+             "--answers-file", answers_file, "--stats-period", "0.5"},
+            "second_voter.log", ns);
+  for (int i = 0; i < 2; ++i) {
+    Start({"placedb_worker", "--db", Db(), "--partition", std::to_string(i) + "/2"},
+          "second_worker" + std::to_string(i) + ".log", ns);
+  }
+  const std::vector<std::string> workers = {ns + "/placedb_worker_0", ns + "/placedb_worker_1"};
+  ASSERT_TRUE(WaitLinked(workers, ns + "/partial_results", {ns + "/placedb_voter"}))
+      << ReadLog("second_voter.log");
+  ros::CallbackQueue queue;
+  ros::NodeHandle nh;
+  nh.setCallbackQueue(&queue);
+  nlohmann::json stats;
+  const ros::Subscriber stats_sub = nh.subscribe<std_msgs::String>(
+      ns + "/voter_stats", 10,
+      [&](const std_msgs::StringConstPtr& m) { stats = nlohmann::json::parse(m->data); },
+      ros::VoidConstPtr(), ros::TransportHints());
+  const ros::Subscriber gate = OpenGate(ns);
+  // Three runs of frames 41..56: two feeds, then the second's run id again.
+  std::vector<std::string> runs;
+  for (int run = 0; run < 3; ++run) {
+    const std::string name = "placedb_feed_" + std::to_string(run);
+    std::vector<std::string> args = {"placedb_feed", "--images", kImages, "--first", "41", "--last",
+                                     "56", "--wait-for", "3", "--rate", "0", "--answer-timeout-ms",
+                                     kNoDeadline, "--log-file", Path(name + ".jsonl"),
+                                     "__name:=" + name};
+    if (run == 2) {
+      args.push_back("--run-id");
+      args.push_back(runs[1]);
+    }
+    const pid_t feed = Start(args, name + ".log", ns);
+    ASSERT_EQ(WaitExit(feed, kRunLimit), 0) << ReadLog(name + ".log") << ReadLog("second_voter.log");
+    const nlohmann::json report = FeedReport(Path(name + ".jsonl"));
+    ASSERT_FALSE(report.is_null()) << ReadLog(name + ".log");
+    EXPECT_EQ(report["frames_sent"], 16) << report.dump();
+    EXPECT_EQ(report["answered"], 16) << report.dump() << ReadLog("second_voter.log");
+    EXPECT_EQ(report["never_answered"], 0) << report.dump();
+    EXPECT_EQ(report["complete"].get<int>() + report["partial"].get<int>(), 16) << report.dump();
+    EXPECT_NE(ReadLog(name + ".log").find("16 frames sent, 16 answered"), std::string::npos)
+        << ReadLog(name + ".log");
+    runs.push_back(report["run"]);
+  }
+  EXPECT_NE(runs[0], runs[1]);
+  EXPECT_EQ(runs[1], runs[2]);
+  // The answers file: each run's 16 frames once (runs 1 and 2 share an id).
+  std::map<std::string, std::multiset<uint64_t>> frames;
+  for (const nlohmann::json& a : WaitLines(answers_file, 48))
+    frames[a["run"].get<std::string>()].insert(a["frame_seq"].get<uint64_t>());
+  ASSERT_EQ(frames[runs[0]].size(), 16u) << ReadLog("second_voter.log");
+  ASSERT_EQ(frames[runs[1]].size(), 32u) << ReadLog("second_voter.log");
+  for (uint64_t f = 0; f < 16; ++f) {
+    EXPECT_EQ(frames[runs[0]].count(f), 1u) << f;
+    EXPECT_EQ(frames[runs[1]].count(f), 2u) << f;
+  }
+  // voter_stats: 48 answers in 3 runs.
+  EXPECT_TRUE(WaitUntil([&] {
+    queue.callAvailable();
+    return !stats.is_null() && stats["answered"] == 48 && stats["runs"] == 3;
+  })) << stats.dump();
+  // The periodic report (every 0.5 s, when the counts changed) has them too.
+  EXPECT_TRUE(WaitUntil([&] {
+    return ReadLog("second_voter.log").find("]: placedb_voter: 48 frames answered (") != std::string::npos;
+  })) << ReadLog("second_voter.log");
+  // Stopped by SIGTERM, the voter reports once more.
+  LoopbackRos::Stop(voter);
+  const std::string log = ReadLog("second_voter.log");
+  EXPECT_NE(log.find("\nplacedb_voter: 48 frames answered ("), std::string::npos) << log;
+  EXPECT_NE(log.find("in 3 feed runs; dropped: "), std::string::npos) << log;
+  EXPECT_NE(log.find("(at shutdown)"), std::string::npos) << log;
+}
+
+// A bag of a feed's topics (frames, image) played twice with rosbag play at
+// its own pace (10 Hz) into a running voter: the second play keeps the run
+// id and numbers 0..7 again, which starts a new run; every frame of both
+// plays is answered once. (rosbag play -k stays up after the bag, so no
+// message is lost to its exit; this test stops it.)
+TEST_F(RosSystemTest, ABagPlayedTwiceIsAnsweredTwice) {
+  const std::string ns = "/bagplay";
+  const std::string answers_file = Path("bagplay_answers.jsonl");
+  const std::string bag_path = Path("feed.bag");
+  {
+    rosbag::Bag bag(bag_path, rosbag::bagmode::Write);
+    const std::vector<Frame> frames = ListImageFolder(kImages, 41, 48);
+    for (size_t i = 0; i < frames.size(); ++i) {
+      std_msgs::Header h;
+      h.seq = static_cast<uint32_t>(i);
+      h.stamp = ros::Time(200.0 + 0.1 * static_cast<double>(i));
+      h.frame_id = "0123456789abcdef";  // the recorded feed's run id
+      bag.write(ns + "/frames", h.stamp, h);
+      h.frame_id = "camera";
+      bag.write(ns + "/image", h.stamp, BgrToImageMessage(LoadFrameImage(frames[i]), h));
+    }
+  }
+  const pid_t voter =
+      Start({"placedb_voter", "--db", Db(), "--partitions", "2", "--deadline-ms", "2000",
+             "--answers-file", answers_file},
+            "bagplay_voter.log", ns);
+  for (int i = 0; i < 2; ++i) {
+    Start({"placedb_worker", "--db", Db(), "--partition", std::to_string(i) + "/2"},
+          "bagplay_worker" + std::to_string(i) + ".log", ns);
+  }
+  ASSERT_TRUE(WaitLinked({ns + "/placedb_worker_0", ns + "/placedb_worker_1"},
+                         ns + "/partial_results", {ns + "/placedb_voter"}))
+      << ReadLog("bagplay_voter.log");
+  for (size_t play = 1; play <= 2; ++play) {
+    const pid_t player = Start({"rosbag", "play", "--quiet", "--keep-alive",
+                                "--wait-for-subscribers", bag_path, "__name:=player"},
+                               "bagplay_player.log", "");
+    EXPECT_EQ(WaitLines(answers_file, 8 * play).size(), 8 * play)
+        << ReadLog("bagplay_voter.log") << ReadLog("bagplay_player.log");
+    LoopbackRos::Stop(player);
+  }
+  std::map<uint64_t, int> answered;
+  for (const nlohmann::json& a : WrittenLines(answers_file)) {
+    EXPECT_EQ(a["run"], "0123456789abcdef");
+    ++answered[a["frame_seq"].get<uint64_t>()];
+  }
+  ASSERT_EQ(answered.size(), 8u) << ReadLog("bagplay_voter.log");
+  for (const auto& [seq, n] : answered) EXPECT_EQ(n, 2) << "frame " << seq;
+  LoopbackRos::Stop(voter);
+  EXPECT_NE(ReadLog("bagplay_voter.log").find("16 frames answered"), std::string::npos)
+      << ReadLog("bagplay_voter.log");
+  EXPECT_NE(ReadLog("bagplay_voter.log").find("in 2 feed runs"), std::string::npos)
+      << ReadLog("bagplay_voter.log");
+}
+
+// Finding 4 of issue #19: nothing reported frames fed but never answered.
+// The feed's report counts them, and its complete / partial counts are the
+// voter's: worker 1 killed before the feed, every answer is partial; with no
+// voter at all, no frame is answered.
+TEST_F(RosSystemTest, TheFeedReportsFramesNeverAnswered) {
+  const std::string ns = "/report";
+  Start({"placedb_voter", "--db", Db(), "--partitions", "2", "--deadline-ms", "300",
+         "--answers-file", Path("report_answers.jsonl")},
+        "report_voter.log", ns);
+  Start({"placedb_worker", "--db", Db(), "--partition", "0/2"}, "report_worker0.log", ns);
+  const pid_t worker1 =
+      Start({"placedb_worker", "--db", Db(), "--partition", "1/2"}, "report_worker1.log", ns);
+  ASSERT_TRUE(WaitLinked({ns + "/placedb_worker_0", ns + "/placedb_worker_1"},
+                         ns + "/partial_results", {ns + "/placedb_voter"}))
+      << ReadLog("report_voter.log");
+  ASSERT_EQ(::kill(worker1, SIGKILL), 0);
+  ASSERT_EQ(WaitExit(worker1, kLimit), 128);
+  {
+    const ros::Subscriber gate = OpenGate(ns);
+    // Worker 0 + the gate.
+    const pid_t feed = Start({"placedb_feed", "--images", kImages, "--first", "41", "--last", "48",
+                              "--wait-for", "2", "--rate", "0", "--answer-timeout-ms", kNoDeadline,
+                              "--log-file", Path("report_feed.jsonl")},
+                             "report_feed.log", ns);
+    ASSERT_EQ(WaitExit(feed, kRunLimit), 0) << ReadLog("report_feed.log");
+  }
+  const nlohmann::json report = FeedReport(Path("report_feed.jsonl"));
+  ASSERT_FALSE(report.is_null()) << ReadLog("report_feed.log");
+  EXPECT_EQ(report["frames_sent"], 8);
+  EXPECT_EQ(report["answered"], 8);
+  EXPECT_EQ(report["complete"], 0);
+  EXPECT_EQ(report["partial"], 8);
+  EXPECT_EQ(report["never_answered"], 0);
+  EXPECT_NE(ReadLog("report_feed.log")
+                .find("8 frames sent, 8 answered (0 complete, 8 partial), 0 never answered"),
+            std::string::npos)
+      << ReadLog("report_feed.log");
+  size_t partial = 0;
+  for (const nlohmann::json& a : WaitLines(Path("report_answers.jsonl"), 8)) {
+    if (a["run"] == report["run"] && !a["complete"].get<bool>() && a["missing"] == nlohmann::json{1})
+      ++partial;
+  }
+  EXPECT_EQ(partial, 8u);
+
+  // No voter: this process takes the announcements and never answers.
+  const std::string quiet = "/report_quiet";
+  ros::NodeHandle nh;
+  const ros::Subscriber frames = nh.subscribe<std_msgs::Header>(
+      quiet + "/frames", 10, [](const std_msgs::HeaderConstPtr&) {}, ros::VoidConstPtr(),
+      ros::TransportHints());
+  const ros::Subscriber gate = OpenGate(quiet);
+  const pid_t feed = Start({"placedb_feed", "--images", kImages, "--first", "41", "--last", "45",
+                            "--wait-for", "1", "--rate", "0", "--answer-timeout-ms", "100",
+                            "--log-file", Path("quiet_feed.jsonl")},
+                           "quiet_feed.log", quiet);
+  ASSERT_EQ(WaitExit(feed, kRunLimit), 0) << ReadLog("quiet_feed.log");
+  const nlohmann::json none = FeedReport(Path("quiet_feed.jsonl"));
+  ASSERT_FALSE(none.is_null()) << ReadLog("quiet_feed.log");
+  EXPECT_EQ(none["frames_sent"], 5);
+  EXPECT_EQ(none["answered"], 0);
+  EXPECT_EQ(none["never_answered"], 5);
+  EXPECT_EQ(none["never_answered_frames"], (nlohmann::json{0, 1, 2, 3, 4}));
+  EXPECT_NE(ReadLog("quiet_feed.log")
+                .find("5 frames sent, 0 answered (0 complete, 0 partial), 5 never answered "
+                      "(frames 0 1 2 3 4)"),
+            std::string::npos)
+      << ReadLog("quiet_feed.log");
 }
 
 // placedb build --bag: a bag written here from the sample images (raw and

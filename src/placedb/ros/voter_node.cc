@@ -9,12 +9,13 @@
 #include <placedb_msgs/PartialResult.h>
 #include <ros/ros.h>
 #include <std_msgs/Header.h>
+#include <std_msgs/String.h>
 
+#include <cstdio>
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
-
-#include <nlohmann/json.hpp>
+#include <utility>
 
 #include "placedb/cli/flags.h"
 #include "placedb/cli/options.h"
@@ -27,7 +28,7 @@ namespace {
 class Voter {
  public:
   Voter(PlaceDatabase keyframes, VoteOptions options, std::string scheme, std::string map_frame,
-        const std::string& answers_file)
+        const std::string& answers_file, double stats_period_s)
       : keyframes_(std::move(keyframes)),
         collector_(options),
         scheme_(std::move(scheme)),
@@ -38,8 +39,11 @@ class Voter {
       answers_log_.open(answers_file, std::ios::app);
       if (!answers_log_.good()) throw IoError("cannot write " + answers_file);
     }
-    answers_ = nh_.advertise<placedb_msgs::Answer>("answers", 100);
+    // Latched: a subscriber that comes later (rostopic echo -n 1 /answers)
+    // still gets the last answer.
+    answers_ = nh_.advertise<placedb_msgs::Answer>("answers", 100, /*latch=*/true);
     poses_ = nh_.advertise<geometry_msgs::PoseStamped>("pose", 100);
+    stats_pub_ = nh_.advertise<std_msgs::String>("voter_stats", 1, /*latch=*/true);
     frames_sub_ =
         nh_.subscribe("frames", 1000, &Voter::OnFrame, this, ros::TransportHints().tcpNoDelay());
     partial_sub_ = nh_.subscribe("partial_results", 1000, &Voter::OnPartial, this,
@@ -47,14 +51,33 @@ class Voter {
     // Deadlines are checked every 2 ms; complete frames are answered as their
     // last partial arrives.
     timer_ = nh_.createSteadyTimer(ros::WallDuration(0.002), &Voter::OnTimer, this);
+    // The counts, on voter_stats and in the log, when they changed.
+    stats_timer_ = nh_.createSteadyTimer(ros::WallDuration(stats_period_s), &Voter::OnStatsTimer, this);
+    PublishStats();
+    last_logged_ = Report();
+  }
+
+  // What the voter did: one line (the log at shutdown and every period).
+  std::string Report() const {
+    const VoteStats& s = collector_.stats();
+    return "placedb_voter: " + std::to_string(s.answered) + " frames answered (" +
+           std::to_string(s.complete) + " complete, " + std::to_string(s.partial) +
+           " partial) in " + std::to_string(s.runs) + " feed runs; dropped: " + drops_.Summary();
   }
 
  private:
   static double NowMs() { return ros::WallTime::now().toSec() * 1000.0; }
 
   void OnFrame(const std_msgs::HeaderConstPtr& h) {
-    headers_.emplace(h->seq, *h);
-    collector_.OnFrame(h->seq, NowMs());
+    // The feed's run id is its announcements' frame_id.
+    const VoteStatus status = collector_.OnFrame(h->seq, NowMs(), h->frame_id);
+    if (status != VoteStatus::kAccepted) {
+      drops_.Drop(std::string(VoteStatusName(status)) + " announcement",
+                  "frame " + std::to_string(h->seq) + " was answered already");
+    } else {
+      headers_[{collector_.run(), h->seq}] = *h;
+    }
+    Publish();
   }
 
   void OnPartial(const placedb_msgs::PartialResultConstPtr& m) {
@@ -78,23 +101,59 @@ class Voter {
       drops_.Drop(ros_node::CauseOf(e.what()), e.what());
       return;
     }
-    headers_.emplace(m->frame_seq, m->header);
     const VoteStatus status =
         collector_.OnPartial(m->frame_seq, static_cast<int>(m->partition), partial, NowMs());
     if (status != VoteStatus::kAccepted) {
       drops_.Drop(VoteStatusName(status), "partition " + std::to_string(m->partition) + ", frame " +
                                               std::to_string(m->frame_seq));
+    } else {
+      headers_.emplace(std::make_pair(collector_.run(), m->frame_seq), m->header);
     }
     Publish();
   }
 
   void OnTimer(const ros::SteadyTimerEvent&) { Publish(); }
 
+  // Every period: the counts in the log (when they changed since the last
+  // line), and on voter_stats (drops do not publish it at once).
+  void OnStatsTimer(const ros::SteadyTimerEvent&) {
+    const std::string report = Report();
+    if (report == last_logged_) return;
+    ROS_INFO("%s", report.c_str());
+    last_logged_ = report;
+    PublishStats();
+  }
+
+  // voter_stats (latched std_msgs/String): the counts as JSON.
+  void PublishStats() {
+    const VoteStats& s = collector_.stats();
+    nlohmann::json j = {{"answered", s.answered}, {"complete", s.complete},
+                        {"partial", s.partial},   {"runs", s.runs},
+                        {"run", collector_.run()}, {"pending", collector_.pending()},
+                        {"dropped", drops_.counts()}};
+    std_msgs::String msg;
+    msg.data = j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+    stats_pub_.publish(msg);
+  }
+
   void Publish() {
-    for (const FrameAnswer& a : collector_.Poll(NowMs())) {
+    std::vector<FrameAnswer> ready;
+    try {
+      ready = collector_.Poll(NowMs());
+    } catch (const std::exception& e) {
+      // Partial results that cannot be merged (a keyframe in two partitions:
+      // workers of different splits): the frames are lost, the voter lives.
+      drops_.Drop(ros_node::CauseOf(e.what()), e.what());
+      return;
+    }
+    for (FrameAnswer& a : ready) {
+      DescribeKeyframes(keyframes_, &a.result);
       std_msgs::Header header;
-      const auto h = headers_.find(a.frame_seq);
-      if (h != headers_.end()) header = h->second;
+      const auto h = headers_.find({a.run, a.frame_seq});
+      if (h != headers_.end()) {
+        header = h->second;
+        headers_.erase(h);
+      }
       header.seq = static_cast<uint32_t>(a.frame_seq);
       header.frame_id = map_frame_;
       const placedb_msgs::Answer msg = AnswerToMessage(a, keyframes_, header);
@@ -110,29 +169,47 @@ class Voter {
                   static_cast<unsigned long>(a.frame_seq), a.missing.size());
       }
       if (answers_log_.is_open()) {
-        nlohmann::json j = {{"frame_seq", a.frame_seq},      {"stamp", header.stamp.toSec()},
-                            {"wall_ms", ros_node::WallMs()}, {"wait_ms", a.waited_ms},
-                            {"complete", a.complete()},      {"answered", a.answered},
-                            {"missing", a.missing},
-                            {"result", nlohmann::json::parse(QueryResultToJson(a.result))}};
+        const nlohmann::json result = nlohmann::json::parse(QueryResultToJson(a.result));
+        const RankedKeyframe* best = a.result.best();
+        const nlohmann::json best_json = best ? result["ranked"][0] : nlohmann::json();
+        nlohmann::json j = {
+            {"frame_seq", a.frame_seq},
+            {"run", a.run},
+            // The frame's source timestamp (its header's stamp), seconds.
+            {"timestamp", header.stamp.toSec()},
+            {"keyframe_id", best ? best->keyframe_id : -1},
+            // The answer's pose (null when no match or the database has none)
+            // and its keyframe's source image.
+            {"pose", best ? best_json["pose"] : nlohmann::json()},
+            {"source", best ? best->source : std::string()},
+            {"wall_ms", ros_node::WallMs()},
+            {"wait_ms", a.waited_ms},
+            {"complete", a.complete()},
+            {"answered", a.answered},
+            {"missing", a.missing},
+            {"result", result}};
         answers_log_ << j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace) << "\n"
                      << std::flush;
       }
-      // Headers of answered frames are not needed again.
-      headers_.erase(headers_.begin(), headers_.upper_bound(a.frame_seq));
     }
+    if (!ready.empty()) PublishStats();
+    // Headers of frames that can no longer be answered (a bound, not a rule:
+    // every header stored is a pending frame's).
+    while (headers_.size() > 2 * static_cast<size_t>(collector_.options().max_pending) + 16)
+      headers_.erase(headers_.begin());
   }
 
   PlaceDatabase keyframes_;
   VoteCollector collector_;
   std::string scheme_, map_frame_, database_id_;
   ros_node::DropLog drops_;
-  std::map<uint64_t, std_msgs::Header> headers_;
+  std::map<std::pair<std::string, uint64_t>, std_msgs::Header> headers_;  // by (run, frame)
   std::ofstream answers_log_;
+  std::string last_logged_;
   ros::NodeHandle nh_;
-  ros::Publisher answers_, poses_;
+  ros::Publisher answers_, poses_, stats_pub_;
   ros::Subscriber frames_sub_, partial_sub_;
-  ros::SteadyTimer timer_;
+  ros::SteadyTimer timer_, stats_timer_;
 };
 
 }  // namespace
@@ -140,8 +217,13 @@ class Voter {
 
 int main(int argc, char** argv) {
   namespace cli = placedb::cli;
-  CLI::App app{"placedb_voter: merges the workers' partial results into one answer per frame"};
+  CLI::App app{"placedb_voter: merges the workers' partial results into one answer per frame",
+               "placedb_voter"};
+  placedb::ros_node::AddExamples(
+      app, {"placedb_voter --db out/demo/db_tum_office --partitions 3 --answers-file answers.jsonl",
+            "placedb_voter --db DB --partitions 4 --partition-scheme interleaved --deadline-ms 200"});
   std::string dir, scheme = "contiguous", map_frame = "map", answers_file;
+  double stats_period_s = 10.0;
   placedb::VoteOptions vote;
   app.add_option("--db", dir, "database directory (only its keyframe table is read)")->required();
   // The vote's options and the query options answers rank and decide by.
@@ -154,11 +236,17 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--answers-file", answers_file,
                  "also append every answer to this file as a JSON line");
+  app.add_option("--stats-period", stats_period_s,
+                 "seconds between reports of the counts (log line, voter_stats), when they "
+                 "changed (0.1, 3600]")
+      ->capture_default_str();
   int code = 0;
   if (!placedb::ros_node::Init(
           &argc, argv, [] { return std::string("placedb_voter"); }, app, &code))
     return code;
   return placedb::ros_node::RunNode("placedb_voter", [&] {
+    if (!(stats_period_s > 0.1 && stats_period_s <= 3600))
+      throw placedb::InvalidArgument("`stats_period` must be in (0.1, 3600]");
     const std::string reason = vote.Check();
     if (!reason.empty()) throw placedb::InvalidArgument("invalid vote options: " + reason);
     placedb::OpenOptions table;
@@ -166,8 +254,13 @@ int main(int argc, char** argv) {
     placedb::PlaceDatabase keyframes = placedb::PlaceDatabase::Open(dir, table);
     ROS_INFO("placedb_voter: %zu keyframes of %s in %d partitions (%s), deadline %.0f ms",
              keyframes.size(), dir.c_str(), vote.num_partitions, scheme.c_str(), vote.deadline_ms);
-    placedb::Voter voter(std::move(keyframes), vote, scheme, map_frame, answers_file);
+    placedb::Voter voter(std::move(keyframes), vote, scheme, map_frame, answers_file,
+                         stats_period_s);
     ros::spin();
+    // Stopped (SIGINT, SIGTERM, rosnode kill): what it did, once more. (On
+    // stdout: rosconsole no longer prints once the node has shut down.)
+    std::printf("%s (at shutdown)\n", voter.Report().c_str());
+    std::fflush(stdout);
     return 0;
   });
 }

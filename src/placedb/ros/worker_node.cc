@@ -132,7 +132,11 @@ class Worker {
 
 int main(int argc, char** argv) {
   namespace cli = placedb::cli;
-  CLI::App app{"placedb_worker: matches frames against partition I of N of a placedb database"};
+  CLI::App app{"placedb_worker: matches frames against partition I of N of a placedb database",
+               "placedb_worker"};
+  placedb::ros_node::AddExamples(
+      app, {"placedb_worker --db out/demo/db_tum_office --partition 0/3 --cpu 0",
+            "placedb_worker --db DB --partition 1/2 --partition-scheme interleaved --input features"});
   cli::DatabaseArgs db;
   cli::QueryArgs query;
   std::string input = "image";
