@@ -57,8 +57,10 @@ const std::string kImages = PLACEDB_DATA_DIR "/rtabmap_loop/images";
 const std::string kNodes = std::string(PLACEDB_ROS_TREE) + "/lib/placedb/";
 // What the system tests share (system_testing.h).
 using ros_testing::ExpectSameAnswer;
+using ros_testing::kLimit;
 using ros_testing::kNoDeadline;
 using ros_testing::kRunLimit;
+using ros_testing::Linked;
 using ros_testing::OpenGate;
 using ros_testing::WaitLines;
 using ros_testing::WaitLinked;
