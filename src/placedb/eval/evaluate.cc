@@ -111,9 +111,8 @@ std::vector<std::string> EvaluationDoubts(const std::vector<Frame>& queries,
         num_same, queries.size(), example->id, example->image_path));
   }
   if (!truth.CanJudgeAny(keyframes)) {
-    const bool poses = truth.Describe().rfind("poses", 0) == 0;
     doubts.push_back(
-        poses ? std::string("the ground truth is poses and no keyframe of the database has a pose: "
+        !truth.IsMatchList() ? std::string("the ground truth is poses and no keyframe of the database has a pose: "
                             "no answer can be judged (build from --tum or a bag with poses, or "
                             "give --truth)")
               : std::string("the match list names none of the database's keyframe ids: no answer "

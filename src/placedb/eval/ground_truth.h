@@ -42,6 +42,8 @@ class GroundTruth {
   // Whether the database holds at least one correct answer for `query`.
   bool AnyCorrectIn(const Frame& query, const std::vector<Keyframe>& keyframes) const;
 
+  // Whether correctness comes from a match list (else from poses).
+  bool IsMatchList() const { return list_.has_value(); }
   // Whether any of `keyframes` can ever be judged correct: a match list
   // names one of their ids; pose truth: one has a pose.
   bool CanJudgeAny(const std::vector<Keyframe>& keyframes) const;
