@@ -51,6 +51,7 @@
 #include "placedb/image/feature_rich_crop.h"
 #include "placedb/match/options.h"
 #include "placedb/query/result.h"
+#include "placedb/query/sequence.h"
 #include "placedb/retrieval/options.h"
 #include "placedb/session/place_database.h"
 #include "placedb/storage/keyframe.h"

@@ -1,5 +1,4 @@
 #include "placedb/eval/evaluate.h"
-#include "placedb/eval/report_json.h"
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -7,18 +6,20 @@
 #include <algorithm>
 #include <filesystem>
 #include <limits>
-#include <opencv2/imgcodecs.hpp>
 #include <map>
+#include <opencv2/imgcodecs.hpp>
 #include <random>
 #include <set>
 
+#include "placedb/eval/report_json.h"
 #include "placedb/query/query.h"
+#include "placedb/session/storage_view.h"
 #include "placedb/util/check.h"
-#include "placedb/util/json_reader.h"
 #include "placedb/util/file_io.h"
+#include "placedb/util/json_reader.h"
 #include "placedb/util/options.h"
 #include "placedb/util/progress.h"
-#include "placedb/session/storage_view.h"
+#include "placedb/util/timer.h"
 
 namespace placedb {
 namespace fs = std::filesystem;
@@ -112,11 +113,12 @@ std::vector<std::string> EvaluationDoubts(const std::vector<Frame>& queries,
   }
   if (!truth.CanJudgeAny(keyframes)) {
     doubts.push_back(
-        !truth.IsMatchList() ? std::string("the ground truth is poses and no keyframe of the database has a pose: "
-                            "no answer can be judged (build from --tum or a bag with poses, or "
-                            "give --truth)")
-              : std::string("the match list names none of the database's keyframe ids: no answer "
-                            "can be judged (is it the truth of this database?)"));
+        !truth.IsMatchList()
+            ? std::string("the ground truth is poses and no keyframe of the database has a pose: "
+                          "no answer can be judged (build from --tum or a bag with poses, or "
+                          "give --truth)")
+            : std::string("the match list names none of the database's keyframe ids: no answer "
+                          "can be judged (is it the truth of this database?)"));
   } else {
     const bool any_answerable = std::any_of(queries.begin(), queries.end(), [&](const Frame& q) {
       return truth.AnyCorrectIn(q, keyframes);
@@ -176,8 +178,29 @@ EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_fra
   report.verified = query_options.verify.enabled;
   ProgressBar progress("evaluating", queries.size(), eval_options.progress);
   std::vector<double> latency, extract, match, verify;
-  std::vector<ScoredAnswer> answers;
+  std::vector<ScoredAnswer> answers, frame_answers;
   QueryOptions options = query_options;
+  std::optional<SequenceMatcher> sequence;
+  // The rank of the first true match (1-based; 0: none).
+  const auto first_correct_rank = [&](const Frame& q, const std::vector<RankedKeyframe>& ranked) {
+    for (size_t r = 0; r < ranked.size(); ++r) {
+      const std::optional<Keyframe> k = db.FindKeyframe(ranked[r].keyframe_id);
+      if (k && truth.IsCorrect(q, *k)) return static_cast<int>(r) + 1;
+    }
+    return 0;
+  };
+  EvalReport::SingleFrame single;
+  double sequence_ms = 0.0;
+  if (eval_options.sequence) {
+    sequence.emplace(keyframes, eval_options.sequence_options);
+    report.sequence_min_score = eval_options.sequence_options.min_score;
+    if (!eval_options.all && static_cast<size_t>(eval_options.num_queries) < queries.size()) {
+      spdlog::warn(
+          "sequence evidence over {} sampled queries of {}: the frames are not consecutive "
+          "(use --all, or --first/--last, to replay a stretch)",
+          eval_options.num_queries, queries.size());
+    }
+  }
   double coverage_sum = 0.0;
   for (const Frame& q : queries) {
     QueryRecord rec;
@@ -194,27 +217,46 @@ EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_fra
       continue;
     }
     rec.result = db.Query(image, options);
+    if (sequence) {
+      const QueryResult frame = rec.result;
+      Timer feed_timer;
+      rec.result = sequence->Feed(rec.result);
+      sequence_ms += feed_timer.ElapsedMs();
+      report.num_decided_by_sequence += rec.result.decided_by == "sequence";
+      // The frame's own answer, judged as a single-frame evaluation would.
+      const int frame_rank = first_correct_rank(q, frame.ranked);
+      rec.frame_correct_at_1 = frame_rank == 1;
+      single.num_correct += frame_rank == 1;
+      single.num_correct_at_5 += frame_rank >= 1 && frame_rank <= 5;
+      ScoredAnswer fa;
+      fa.has_answer = !frame.ranked.empty();
+      fa.score = frame.ranked.empty() ? 0.0 : frame.ranked[0].score;
+      fa.correct = rec.frame_correct_at_1;
+      frame_answers.push_back(fa);
+    }
     if (eval_options.sequence) {
       // The next query's prior: this one's answer (none after "no match").
       options.prior = QueryPrior();
       if (rec.result.best()) options.prior.keyframe_id = rec.result.best()->keyframe_id;
     }
+    if (rec.has_true_match_in_db) {
+      for (const Keyframe& k : keyframes) {
+        if (truth.IsCorrect(q, k)) {
+          rec.true_keyframe_id = k.id;
+          break;
+        }
+      }
+    }
     ++report.searches[rec.result.search];
     coverage_sum += rec.result.coverage;
     report.num_deadline_reached += rec.result.deadline_reached;
     const std::vector<RankedKeyframe>& ranked = rec.result.ranked;
-    for (size_t r = 0; r < ranked.size(); ++r) {
-      const std::optional<Keyframe> k = db.FindKeyframe(ranked[r].keyframe_id);
-      if (k && truth.IsCorrect(q, *k)) {
-        rec.first_correct_rank = static_cast<int>(r) + 1;
-        break;
-      }
-    }
+    rec.first_correct_rank = first_correct_rank(q, ranked);
     rec.correct_at_1 = rec.first_correct_rank == 1;
     rec.correct_at_5 = rec.first_correct_rank >= 1 && rec.first_correct_rank <= 5;
     ScoredAnswer answer;
     answer.has_answer = !ranked.empty();
-    answer.score = ranked.empty() ? 0.0 : ranked[0].score;
+    answer.score = rec.result.decision_score();
     answer.correct = rec.correct_at_1;
     answers.push_back(answer);
     ++report.num_queries;
@@ -235,8 +277,19 @@ EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_fra
     report.recall_at_1 = static_cast<double>(report.num_correct) / report.num_answerable;
     report.recall_at_5 = static_cast<double>(report.num_correct_at_5) / report.num_answerable;
   }
-  report.precision_recall =
-      ComputePrecisionRecall(answers, report.num_answerable, query_options.min_score);
+  report.precision_recall = ComputePrecisionRecall(
+      answers, report.num_answerable,
+      sequence ? eval_options.sequence_options.min_score : query_options.min_score);
+  if (sequence) {
+    if (report.num_answerable > 0) {
+      single.recall_at_1 = static_cast<double>(single.num_correct) / report.num_answerable;
+      single.recall_at_5 = static_cast<double>(single.num_correct_at_5) / report.num_answerable;
+    }
+    single.precision_recall =
+        ComputePrecisionRecall(frame_answers, report.num_answerable, query_options.min_score);
+    report.single_frame = single;
+    if (report.num_queries > 0) report.sequence_ms_mean = sequence_ms / report.num_queries;
+  }
   report.latency_ms = ComputeLatencyStats(latency);
   report.extract_ms = ComputeLatencyStats(extract);
   report.match_ms = ComputeLatencyStats(match);
@@ -302,6 +355,22 @@ nlohmann::json EvalReportToJson(const EvalReport& r) {
   j["full_frames_png_bytes"] = r.full_png_bytes;
   j["reduction_vs_full"] = r.reduction_vs_full;
   j["truth"] = r.truth;
+  if (r.single_frame) {
+    const EvalReport::SingleFrame& f = *r.single_frame;
+    j["single_frame"] = {{"num_correct", f.num_correct},
+                         {"num_correct_at_5", f.num_correct_at_5},
+                         {"recall_at_1", f.recall_at_1},
+                         {"recall_at_5", f.recall_at_5},
+                         {"average_precision", f.precision_recall.average_precision},
+                         {"recall_at_full_precision", f.precision_recall.recall_at_full_precision},
+                         {"at_threshold", PointJson(f.precision_recall.at_threshold)}};
+    j["sequence"] = {{"decided", r.num_decided_by_sequence},
+                     {"min_score", r.sequence_min_score},
+                     {"feed_ms_mean", r.sequence_ms_mean}};
+  } else {
+    j["single_frame"] = nullptr;
+    j["sequence"] = nullptr;
+  }
   nlohmann::json queries = nlohmann::json::array();
   for (const QueryRecord& q : r.queries) {
     nlohmann::json e;
@@ -312,6 +381,8 @@ nlohmann::json EvalReportToJson(const EvalReport& r) {
     e["correct_at_5"] = q.correct_at_5;
     e["first_correct_rank"] = q.first_correct_rank;
     e["has_true_match_in_db"] = q.has_true_match_in_db;
+    e["true_keyframe_id"] = q.true_keyframe_id;
+    if (r.single_frame) e["frame_correct_at_1"] = q.frame_correct_at_1;
     e["result"] = q.unreadable ? nlohmann::json(nullptr) : nlohmann::json(q.result);
     queries.push_back(e);
   }
@@ -327,20 +398,43 @@ std::string FormatEvalReport(const EvalReport& r) {
   out += fmt::format("  answerable        {:>10}   (a true match is in the database)\n",
                      r.num_answerable);
   out += fmt::format("  verification      {:>10}\n", r.verified ? "on" : "off");
-  out += fmt::format("  correct @1        {:>10}\n", r.num_correct);
   // With nothing answerable, recall is 0/0: not a number to read.
   const auto ratio = [&](double value) {
     return r.num_answerable > 0 ? fmt::format("{:.3f}", value) : std::string("n/a");
   };
-  out += fmt::format("  recall@1          {:>10}\n", ratio(r.recall_at_1));
-  out += fmt::format("  recall@5          {:>10}\n", ratio(r.recall_at_5));
-  out += fmt::format("  answered          {:>10}   (best score >= {:g})\n",
-                     pr.at_threshold.answered, r.min_score);
-  out += fmt::format("  precision         {:>10}   at that threshold (recall {})\n",
-                     ratio(pr.at_threshold.precision), ratio(pr.at_threshold.recall));
-  out += fmt::format("  PR AUC            {:>10}   (average precision over the threshold)\n",
-                     ratio(pr.average_precision));
-  out += fmt::format("  recall @ P=1      {:>10}\n", ratio(pr.recall_at_full_precision));
+  if (r.single_frame) {
+    // Sequence evidence: the frames' own answers beside the sequence's.
+    const EvalReport::SingleFrame& f = *r.single_frame;
+    const PrecisionRecall& fp = f.precision_recall;
+    out += fmt::format("                    {:>12} {:>10}\n", "single frame", "sequence");
+    out += fmt::format("  correct @1        {:>12} {:>10}\n", f.num_correct, r.num_correct);
+    out += fmt::format("  recall@1          {:>12} {:>10}\n", ratio(f.recall_at_1),
+                       ratio(r.recall_at_1));
+    out += fmt::format("  recall@5          {:>12} {:>10}\n", ratio(f.recall_at_5),
+                       ratio(r.recall_at_5));
+    out += fmt::format("  PR AUC            {:>12} {:>10}\n", ratio(fp.average_precision),
+                       ratio(pr.average_precision));
+    out += fmt::format("  recall @ P=1      {:>12} {:>10}\n", ratio(fp.recall_at_full_precision),
+                       ratio(pr.recall_at_full_precision));
+    out += fmt::format("  answered          {:>12} {:>10}   (score >= {:g} / path mean >= {:g})\n",
+                       fp.at_threshold.answered, pr.at_threshold.answered, r.min_score,
+                       r.sequence_min_score);
+    out += fmt::format("  precision         {:>12} {:>10}   at those thresholds\n",
+                       ratio(fp.at_threshold.precision), ratio(pr.at_threshold.precision));
+    out += fmt::format("  sequence decided  {:>23}   of {} frames ({:.3f} ms a frame)\n",
+                       r.num_decided_by_sequence, r.num_queries, r.sequence_ms_mean);
+  } else {
+    out += fmt::format("  correct @1        {:>10}\n", r.num_correct);
+    out += fmt::format("  recall@1          {:>10}\n", ratio(r.recall_at_1));
+    out += fmt::format("  recall@5          {:>10}\n", ratio(r.recall_at_5));
+    out += fmt::format("  answered          {:>10}   (best score >= {:g})\n",
+                       pr.at_threshold.answered, r.min_score);
+    out += fmt::format("  precision         {:>10}   at that threshold (recall {})\n",
+                       ratio(pr.at_threshold.precision), ratio(pr.at_threshold.recall));
+    out += fmt::format("  PR AUC            {:>10}   (average precision over the threshold)\n",
+                       ratio(pr.average_precision));
+    out += fmt::format("  recall @ P=1      {:>10}\n", ratio(pr.recall_at_full_precision));
+  }
   out += fmt::format("  latency ms        {:>10.2f}   mean  (p50 {:.2f}, p99 {:.2f})\n",
                      r.latency_ms.mean, r.latency_ms.p50, r.latency_ms.p99);
   out += fmt::format("  stages ms         {:>10}   extract {:.2f}, match {:.2f}, verify {:.2f}\n",

@@ -6,11 +6,13 @@
 
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "placedb/eval/ground_truth.h"
 #include "placedb/eval/metrics.h"
+#include "placedb/query/sequence.h"
 #include "placedb/session/place_database.h"
 #include "placedb/util/option_table.h"
 
@@ -31,6 +33,8 @@ struct EvalOptions {
   // robot moving through the map would: realistic priors for cluster
   // search. Default false (every query without a prior).
   bool sequence = false;
+  // With `sequence`: the sequence evidence's options (query/sequence.h).
+  SequenceOptions sequence_options;
   // Refuse, instead of warning about, an evaluation that cannot mean
   // anything (EvaluationDoubts). Default false.
   bool strict = false;
@@ -50,6 +54,10 @@ struct QueryRecord {
   // 0 when none is: recall@k curves.
   int first_correct_rank = 0;
   bool has_true_match_in_db = false;  // whether any keyframe could be right
+  // With sequence evidence: whether the frame's own answer (before the
+  // sequence) was right at rank 1; `result` is the sequence's answer.
+  bool frame_correct_at_1 = false;
+  int32_t true_keyframe_id = 0;  // a keyframe that would have been right (0: none)
   bool unreadable = false;
 };
 
@@ -86,6 +94,20 @@ struct EvalReport {
   // Why the numbers may mean nothing (EvaluationDoubts), warned about.
   std::vector<std::string> doubts;
   std::vector<QueryRecord> queries;
+  // With sequence evidence (EvalOptions::sequence), the numbers above are the
+  // sequence's answers and these the same frames' own answers, from the
+  // same queries.
+  struct SingleFrame {
+    int num_correct = 0;
+    int num_correct_at_5 = 0;
+    double recall_at_1 = 0.0;
+    double recall_at_5 = 0.0;
+    PrecisionRecall precision_recall;
+  };
+  std::optional<SingleFrame> single_frame;
+  int num_decided_by_sequence = 0;
+  double sequence_min_score = 0.0;
+  double sequence_ms_mean = 0.0;  // SequenceMatcher::Feed per frame
 };
 
 // A random subset of `frames`: n of them (all when n <= 0 or n >= size),

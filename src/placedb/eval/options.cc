@@ -50,9 +50,11 @@ const OptionTable<EvalOptions>& EvalOptions::Table() {
     t.Number("seed", PLACEDB_MEMBER(O, seed), OptionRange::Any(),
              "seed of the random query selection", kCallers);
     t.Bool("sequence", PLACEDB_MEMBER(O, sequence),
-           "replay the queries in id order, each with the previous answer as its prior "
-           "(`prior_keyframe`), as a moving robot would",
+           "replay the queries in id order as a moving robot's frames: each with the previous "
+           "answer as its prior (`prior_keyframe`), and answered with sequence evidence "
+           "(`sequence_*`) beside the single-frame answers",
            BoolFlag::kSwitch, kCallers);
+    t.Nest(PLACEDB_MEMBER(O, sequence_options), SequenceOptions::Table(), kCallers);
     t.Bool("strict", PLACEDB_MEMBER(O, strict),
            "refuse an evaluation that cannot mean anything (queries that are database frames, "
            "no answerable query, truth that judges no keyframe); default: warn",
@@ -109,8 +111,8 @@ const OptionTable<ExperimentOptions>& ExperimentOptions::Table() {
     // The grid.
     t.List("features", PLACEDB_MEMBER(O, features), {FeatureType::kOrb, FeatureType::kSurf},
            ParseFeatureType, FeatureTypeName, "features of the grid", kCallers);
-    t.List("crop", PLACEDB_MEMBER(O, crops), {CropMode::kNone, CropMode::kChroma},
-           ParseCropMode, CropModeName, "crops of the grid", kCallers);
+    t.List("crop", PLACEDB_MEMBER(O, crops), {CropMode::kNone, CropMode::kChroma}, ParseCropMode,
+           CropModeName, "crops of the grid", kCallers);
     t.List("resize", PLACEDB_MEMBER(O, resizes), {1, 4, 16}, ParseResize, ResizeName,
            "stored-area divisors of the grid", kCallers);
     t.List("verification", PLACEDB_MEMBER(O, verify), {true, false}, ParseVerification,
@@ -125,7 +127,10 @@ const OptionTable<ExperimentOptions>& ExperimentOptions::Table() {
             "progress", "overwrite"});
     t.Nest(PLACEDB_MEMBER(O, query), QueryOptions::Table(), kCallers,
            {"verify", "prior_keyframe", "prior_pose"});
-    t.Nest(PLACEDB_MEMBER(O, eval), EvalOptions::Table(), kCallers, {"sequence", "progress"});
+    t.Nest(PLACEDB_MEMBER(O, eval), EvalOptions::Table(), kCallers,
+           {"sequence", "progress", "sequence_length", "sequence_min_length",
+            "sequence_min_velocity", "sequence_max_velocity", "sequence_velocity_steps",
+            "sequence_match_weight", "sequence_min_score"});
     t.Number("pictures", PLACEDB_MEMBER(O, num_pictures), OptionRange::Closed(0, 20),
              "queries drawn as match pictures, cropped vs uncropped", kCallers);
     t.Number("failures", PLACEDB_MEMBER(O, num_failures), OptionRange::Closed(0, 100),

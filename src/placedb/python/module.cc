@@ -153,6 +153,15 @@ std::string ResultRepr(const QueryResult& r) {
 }
 
 // ---- the database session -------------------------------------------------
+// A SequenceMatcher with the database its query() asks (kept alive by
+// pybind11's keep_alive).
+struct SequenceSession {
+  SequenceSession(const PlaceDatabase& database, const SequenceOptions& options)
+      : db(database), matcher(database.keyframes(), options) {}
+  const PlaceDatabase& db;
+  SequenceMatcher matcher;
+};
+
 std::unique_ptr<PlaceDatabase> OpenDatabase(const fs::path& dir, const py::kwargs& kwargs) {
   OpenOptions o;
   ApplyKwargs(kwargs, {Target(&o)}, "PlaceDatabase");
@@ -334,8 +343,9 @@ py::dict RunExperimentInto(const fs::path& out, const py::object& database, bool
   db_source.last = 0;
   if (!database.is_none()) {
     if (!py::isinstance<py::dict>(database))
-      throw InvalidArgument("`database` takes a dict of frame-source keywords (images, tum, first, "
-                            "last, ...)");
+      throw InvalidArgument(
+          "`database` takes a dict of frame-source keywords (images, tum, first, "
+          "last, ...)");
     py::kwargs db_kwargs;
     for (const auto& item : database.cast<py::dict>()) db_kwargs[item.first] = item.second;
     // A folder given for the database replaces the query source's.
@@ -607,8 +617,7 @@ PYBIND11_MODULE(placedb, m) {
       .def_readonly("stored_image", &RankedKeyframe::stored_image,
                     "its stored PNG (database directory joined); '' when none")
       .def(
-          "to_dict",
-          [](const RankedKeyframe& k) { return FromJsonText(RankedKeyframeToJson(k)); },
+          "to_dict", [](const RankedKeyframe& k) { return FromJsonText(RankedKeyframeToJson(k)); },
           "The library's JSON of this entry, as a dict.")
       .def("__eq__", [](const RankedKeyframe& a, const RankedKeyframe& b) { return a == b; })
       .def("__repr__", &RankedRepr);
@@ -641,9 +650,23 @@ PYBIND11_MODULE(placedb, m) {
                     "'cluster+fallback' or 'cluster+global'")
       .def_readonly("cluster", &QueryResult::cluster, "cluster search: the prior's cluster, -1")
       .def_readonly("times", &QueryResult::times, "StageTimes, milliseconds")
+      .def_readonly("decided_by", &QueryResult::decided_by,
+                    "'frame' (this frame's own query) or 'sequence' (a SequenceMatcher's path: its "
+                    "end is ranked[0] and `matched` is the path's decision)")
+      .def_property_readonly(
+          "sequence",
+          [](const QueryResult& r) -> py::object {
+            if (!r.sequence) return py::none();
+            return FromJsonText(QueryResultToJson(r))["sequence"];
+          },
+          "after SequenceMatcher.feed: a dict (keyframe_id: the best path's end, score: its "
+          "mean evidence per frame, frames, velocity, frame_keyframe_id, frame_score, "
+          "frame_matched: the frame's own answer); None otherwise")
+      .def("decision_score", &QueryResult::decision_score,
+           "the score the decision was made on: the path's when the sequence answered, else "
+           "ranked[0]'s")
       .def(
-          "to_dict",
-          [](const QueryResult& r) { return FromJsonText(QueryResultToJson(r)); },
+          "to_dict", [](const QueryResult& r) { return FromJsonText(QueryResultToJson(r)); },
           "The library's JSON of the result (what `placedb query --json` writes, without the "
           "query and database paths), as a dict.")
       .def(
@@ -737,8 +760,7 @@ PYBIND11_MODULE(placedb, m) {
           "manifest", [](const PlaceDatabase& db) { return FromJsonText(db.manifest_json()); },
           "the manifest (every build setting, counts, sizes, creation info), a dict")
       .def_property_readonly(
-          "keyframe_ids",
-          [](const PlaceDatabase& db) { return db.keyframe_ids(); },
+          "keyframe_ids", [](const PlaceDatabase& db) { return db.keyframe_ids(); },
           "ids of the keyframes opened, in file order")
       .def_property_readonly(
           "ids",
@@ -808,10 +830,10 @@ PYBIND11_MODULE(placedb, m) {
 
   ExperimentOptions experiment_defaults;
   experiment_defaults.progress = false;
-  const std::string experiment_doc = fmt::format(
-      fmt::runtime(kExperimentDoc), DescribeKwargs({Target(&source_defaults),
-                                                    Target(&truth_defaults),
-                                                    Target(&experiment_defaults)}));
+  const std::string experiment_doc =
+      fmt::format(fmt::runtime(kExperimentDoc),
+                  DescribeKwargs({Target(&source_defaults), Target(&truth_defaults),
+                                  Target(&experiment_defaults)}));
   m.def("experiment", &RunExperimentInto, py::arg("out"), py::kw_only(),
         py::arg("database") = py::none(), py::arg("report") = true, experiment_doc.c_str());
 
@@ -836,6 +858,49 @@ PYBIND11_MODULE(placedb, m) {
         return OptionDefaults({Target(&o)});
       },
       "The build settings (keywords of build()) and their defaults, a dict.");
+  SequenceOptions sequence_defaults;
+  const std::string sequence_doc = fmt::format(
+      "SequenceMatcher(db, **options): sequence-consistent recognition over a stream of "
+      "frames (query/sequence.h). Query each frame with db.query() and feed() the result in "
+      "the order the frames were taken, or call query(image) which does both; the answer is "
+      "the keyframe at the end of the best path through the keyframe order over the last "
+      "frames (QueryResult.decided_by, QueryResult.sequence). reset() after a jump (a new "
+      "run, a relocalisation). Keywords:\n{}",
+      DescribeKwargs({Target(&sequence_defaults)}));
+  py::class_<SequenceSession>(m, "SequenceMatcher", sequence_doc.c_str())
+      .def(py::init([](const PlaceDatabase& db, const py::kwargs& kwargs) {
+             SequenceOptions o;
+             ApplyKwargs(kwargs, {Target(&o)}, "SequenceMatcher");
+             CheckOptions(o);
+             return std::make_unique<SequenceSession>(db, o);
+           }),
+           py::arg("db"), py::keep_alive<1, 2>(), sequence_doc.c_str())
+      .def(
+          "feed",
+          [](SequenceSession& s, const QueryResult& frame) { return s.matcher.Feed(frame); },
+          py::arg("result"),
+          "Adds a frame's QueryResult (from db.query) as the newest frame; returns it with the "
+          "sequence's decision.")
+      .def(
+          "query",
+          [](SequenceSession& s, const py::object& image, const py::kwargs& kwargs) {
+            const QueryOptions options = QueryOptionsFrom(kwargs, "query");
+            const ImageInput in = ToImage(image);
+            QueryResult frame;
+            {
+              py::gil_scoped_release release;
+              frame = s.db.Query(in.mat, options);
+            }
+            return s.matcher.Feed(std::move(frame));
+          },
+          py::arg("image"), "db.query(image, **query_options), then feed(): the sequence's answer.")
+      .def(
+          "reset", [](SequenceSession& s) { s.matcher.Reset(); }, "Forgets every frame.")
+      .def(
+          "set_keyframes", [](SequenceSession& s) { s.matcher.SetKeyframes(s.db.keyframes()); },
+          "Reads the database's keyframes again (after add or remove) and resets.")
+      .def_property_readonly("frames_held",
+                             [](const SequenceSession& s) { return s.matcher.frames_held(); });
   m.def(
       "option_defaults",
       []() {
@@ -854,12 +919,14 @@ PYBIND11_MODULE(placedb, m) {
         all["evaluate"] = OptionDefaults({Target(&source), Target(&truth), Target(&eval)});
         ExperimentOptions experiment;
         experiment.progress = false;
-        all["experiment"] =
-            OptionDefaults({Target(&source), Target(&truth), Target(&experiment)});
+        all["experiment"] = OptionDefaults({Target(&source), Target(&truth), Target(&experiment)});
+        SequenceOptions sequence;
+        all["sequence"] = OptionDefaults({Target(&sequence)});
         return all;
       },
       "Every keyword of PlaceDatabase() ('open'), query() ('query'), build() ('build'), "
-      "evaluate() ('evaluate', with the query options too) and experiment() ('experiment'), "
+      "evaluate() ('evaluate', with the query options too), experiment() ('experiment') "
+      "and SequenceMatcher() ('sequence'), "
       "with its default: a dict of dicts. "
       "They come from the library's option tables, as the command line's flags do.");
   m.def("set_log_level", &SetLogLevel, py::arg("level"),

@@ -174,12 +174,41 @@ class PlaceDbTest(unittest.TestCase):
         self.assertEqual(
             set(d), {"matched", "best", "ranked", "num_query_features", "num_keyframes",
                      "num_examined", "num_verified", "coverage", "deadline_reached", "search",
-                     "cluster", "times_ms"})
+                     "cluster", "times_ms", "decided_by", "sequence"})
         self.assertEqual(d["best"], r.best.to_dict())
         self.assertEqual([k["keyframe_id"] for k in d["ranked"]],
                          [k.keyframe_id for k in r.ranked])
         self.assertEqual(d["times_ms"]["total"], r.times.total_ms)
         self.assertIsNone(d["best"]["pose"])
+
+    def test_sequence_matcher(self):
+        # The second lap's frames 41..52 revisit keyframes 1..12 in order.
+        seq = placedb.SequenceMatcher(self.db, sequence_length=5, sequence_min_score=3)
+        self.assertEqual(seq.frames_held, 0)
+        answers = []
+        for i in range(41, 53):
+            r = seq.query(placedb.read_image(image_path(i)), top_k=5)
+            answers.append(r)
+            self.assertIsNotNone(r.sequence)
+            self.assertIn(r.decided_by, ("frame", "sequence"))
+            self.assertEqual(r.to_dict()["sequence"], r.sequence)
+        self.assertEqual(answers[0].decided_by, "frame")
+        self.assertEqual(seq.frames_held, 5)
+        last = answers[-1]
+        self.assertEqual(last.decided_by, "sequence")
+        self.assertTrue(last.matched)
+        self.assertLessEqual(abs(last.best.keyframe_id - 12), 2)
+        self.assertEqual(last.decision_score(), last.sequence["score"])
+        # feed() takes a result of db.query; reset() forgets.
+        seq.reset()
+        self.assertEqual(seq.frames_held, 0)
+        r = seq.feed(self.db.query(self.image5))
+        self.assertEqual(r.decided_by, "frame")
+        self.assertEqual(r.sequence["frames"], 1)
+        with self.assertRaises(placedb.InvalidArgumentError):
+            placedb.SequenceMatcher(self.db, sequence_min_velocity=3, sequence_max_velocity=1)
+        with self.assertRaises(TypeError):
+            placedb.SequenceMatcher(self.db, sequence_lenght=3)
 
     def test_other_layouts_give_the_same_answer(self):
         im = self.image5
@@ -546,7 +575,8 @@ class PlaceDbTest(unittest.TestCase):
         docs = {"open": placedb.PlaceDatabase.__init__.__doc__,
                 "query": placedb.PlaceDatabase.query.__doc__,
                 "build": placedb.build.__doc__, "evaluate": placedb.evaluate.__doc__,
-                "experiment": placedb.experiment.__doc__}
+                "experiment": placedb.experiment.__doc__,
+                "sequence": placedb.SequenceMatcher.__doc__}
         count = 0
         for table in tables:
             for o in table["options"]:

@@ -16,6 +16,17 @@ bool RankedKeyframe::operator==(const RankedKeyframe& o) const {
          source == o.source && stored_image == o.stored_image;
 }
 
+bool SequenceEvidence::operator==(const SequenceEvidence& o) const {
+  return keyframe_id == o.keyframe_id && score == o.score && frames == o.frames &&
+         velocity == o.velocity && frame_keyframe_id == o.frame_keyframe_id &&
+         frame_score == o.frame_score && frame_matched == o.frame_matched;
+}
+
+double QueryResult::decision_score() const {
+  if (decided_by == "sequence" && sequence) return sequence->score;
+  return ranked.empty() ? 0.0 : ranked.front().score;
+}
+
 // ---- JSON -------------------------------------------------------------------
 namespace {
 
@@ -92,6 +103,19 @@ void to_json(nlohmann::json& j, const QueryResult& r) {
   j["deadline_reached"] = r.deadline_reached;
   j["search"] = r.search;
   j["cluster"] = r.cluster;
+  j["decided_by"] = r.decided_by;
+  if (r.sequence) {
+    const SequenceEvidence& s = *r.sequence;
+    j["sequence"] = {{"keyframe_id", s.keyframe_id},
+                     {"score", s.score},
+                     {"frames", s.frames},
+                     {"velocity", s.velocity},
+                     {"frame_keyframe_id", s.frame_keyframe_id},
+                     {"frame_score", s.frame_score},
+                     {"frame_matched", s.frame_matched}};
+  } else {
+    j["sequence"] = nullptr;
+  }
   j["times_ms"] = {{"extract", r.times.extract_ms},
                    {"retrieve", r.times.retrieve_ms},
                    {"match", r.times.match_ms},
@@ -119,6 +143,29 @@ void from_json(const nlohmann::json& json, QueryResult& out) {
   r.deadline_reached = j.Boolean("deadline_reached");
   r.search = j.String("search");
   r.cluster = static_cast<int>(j.Integer("cluster", -1, INT32_MAX));
+  // Results of workers and of earlier versions carry no sequence part.
+  if (j.Has("decided_by")) {
+    r.decided_by = j.String("decided_by");
+    if (r.decided_by != "frame" && r.decided_by != "sequence")
+      j.Fail("decided_by", "is neither \"frame\" nor \"sequence\"");
+  }
+  if (j.Has("sequence") && !j.Member("sequence").is_null()) {
+    const JsonReader s = j.Child("sequence");
+    SequenceEvidence e;
+    e.keyframe_id = static_cast<int32_t>(s.Integer("keyframe_id", 0, INT32_MAX));
+    e.score = s.Number("score");
+    e.frames = static_cast<int>(s.Integer("frames", 0, 100));
+    e.velocity = s.Number("velocity");
+    e.frame_keyframe_id = static_cast<int32_t>(s.Integer("frame_keyframe_id", 0, INT32_MAX));
+    e.frame_score = s.Number("frame_score");
+    e.frame_matched = s.Boolean("frame_matched");
+    r.sequence = e;
+  }
+  if (r.decided_by == "sequence" && !r.sequence)
+    j.Fail("decided_by", "is \"sequence\" but there is no sequence part");
+  if (r.decided_by == "sequence" &&
+      (r.ranked.empty() || r.ranked.front().keyframe_id != r.sequence->keyframe_id))
+    j.Fail("decided_by", "is \"sequence\" but the path's end is not ranked first");
   const JsonReader t = j.Child("times_ms");
   r.times.extract_ms = t.Number("extract");
   r.times.retrieve_ms = t.Number("retrieve");

@@ -91,6 +91,22 @@ struct StageTimes {
   double total_ms = 0.0;
 };
 
+// The sequence's part of an answer (query/sequence.h): the best path through
+// the keyframe order over the last frames, and the frame's own answer.
+struct SequenceEvidence {
+  int32_t keyframe_id = 0;  // the path's end: the sequence's answer (0: none)
+  double score = 0.0;       // the path's mean evidence per frame
+  int frames = 0;           // frames the path's score is the mean over
+  double velocity = 0.0;    // keyframes per frame
+  // The frame's own (single-frame) answer: its best keyframe (0: none), its
+  // score and decision.
+  int32_t frame_keyframe_id = 0;
+  double frame_score = 0.0;
+  bool frame_matched = false;
+
+  bool operator==(const SequenceEvidence& o) const;
+};
+
 struct QueryResult {
   // Best first, at most top_k: with verification, the verified candidates by
   // inliers (then matches, then lower id); without, by matches (then id).
@@ -114,9 +130,17 @@ struct QueryResult {
   // cluster search: the prior's cluster, -1 when none.
   int cluster = -1;
   StageTimes times;
+  // Which answered: "frame" (this frame's own query) or "sequence" (a
+  // SequenceMatcher's path: its end is ranked first and `matched` is the
+  // path's decision). `sequence` is set when a SequenceMatcher fed on it.
+  std::string decided_by = "frame";
+  std::optional<SequenceEvidence> sequence;
 
   // The answer, or nullptr for "no match".
   const RankedKeyframe* best() const { return matched ? &ranked.front() : nullptr; }
+  // The score the decision was made on: the path's when the sequence
+  // answered, else the first keyframe's (0 when none).
+  double decision_score() const;
 };
 
 // Why a keyframe matched: the match and verify stages of a query on one

@@ -1,0 +1,117 @@
+// Sequence-consistent recognition: evidence from the last frames of a stream
+// accumulated along paths through the database's keyframe order (SeqSLAM's
+// idea, Milford & Wyeth 2012, on placedb's own per-frame answers).
+//
+// A caller queries each frame as usual and feeds the frame's QueryResult to a
+// SequenceMatcher, in the order the frames were taken (causal: only past
+// frames count). The matcher keeps the last `length` frames' evidence and
+// answers with the keyframe at the end of the best path, with the path's own
+// score for the decide stage:
+//
+//  - The keyframe order is by timestamp when every keyframe has one, else by
+//    id. A keyframe's position is its index in that order.
+//  - A frame's evidence is its ranked list (at most kMaxEvidencePerFrame
+//    entries): keyframe -> score + match_weight x matches in this frame
+//    (score: inliers when verified, else matches; fused with the
+//    whole-image channel when it is on). A keyframe the frame did not rank has evidence 0 in that frame.
+//    So with exhaustive search "every keyframe" means the frame's best
+//    `top_k`, and with bag-of-words the candidates that reached the ranked
+//    list; a caller that wants denser evidence raises `top_k`.
+//  - A path ends at position j in the newest frame and moves v keyframes per
+//    frame: k frames earlier it was at j - round(v k). v takes
+//    `velocity_steps` values evenly from `min_velocity` to `max_velocity`.
+//    Its score is its best mean evidence over its newest m frames, m from
+//    min_length to the h frames held (h <= length).
+//  - Only ends some frame's evidence can reach are scored: for every held
+//    frame's ranked position p (k frames back) and velocity v, j = p +
+//    round(v k). The work per frame is bounded by length^2 x
+//    kMaxEvidencePerFrame x velocity_steps, whatever the database's size.
+//  - The decision: with at least 2 frames held and a best path scoring at
+//    least `min_score`, the sequence decides: its end keyframe is the answer
+//    (first in `ranked`, added if the frame did not rank it).
+//    Otherwise, when the frame's own answer is matched, the frame decides (a
+//    jump the path has not followed yet); otherwise, with 2 frames or more,
+//    the path's end is ranked first but not matched. QueryResult::decided_by
+//    says which decided and QueryResult::sequence holds the path and the
+//    frame's own answer.
+//
+// Reset() forgets the frames (a new run, a relocalisation, a jump in time).
+// Keyframes added to the database after the matcher was made are unknown to
+// it (their evidence is ignored) until SetKeyframes.
+#pragma once
+
+#include <cstdint>
+#include <deque>
+#include <string>
+#include <unordered_map>
+#include <utility>
+#include <vector>
+
+#include "placedb/query/result.h"
+#include "placedb/storage/keyframe.h"
+#include "placedb/util/option_table.h"
+
+namespace placedb {
+
+struct SequenceOptions {
+  // Frames of evidence, the newest included. Range [1, 100]. Default 10.
+  int length = 10;
+  // A path's score is its best mean evidence over its newest m frames, m
+  // from min_length to the frames held: a path the camera joined a few
+  // frames ago (coming back to a mapped stretch) is not diluted by the
+  // frames before. Range [1, 100], at most `length`. Default 2.
+  int min_length = 2;
+  // Keyframes the camera moves per frame: paths are tried for velocity_steps
+  // values in [min_velocity, max_velocity]. Negative: driving the map
+  // backwards. Range [-100, 100] each, min <= max. Default [0, 2].
+  double min_velocity = 0.0;
+  double max_velocity = 2.0;
+  // Range [1, 101]. Default 9 (steps of 0.25).
+  int velocity_steps = 9;
+  // A keyframe's evidence in a frame: its score (inliers when verified, else
+  // matches) plus match_weight x its matches, so that a keyframe whose
+  // matches verification could not confirm (tiny frames: too few points
+  // for a model) still counts. Range [0, 100]. Default 1.
+  double match_weight = 1.0;
+  // Decide: the best path's mean evidence per frame must reach this. Range
+  // [0, 100000]. Default 5.
+  double min_score = 5.0;
+
+  static const OptionTable<SequenceOptions>& Table();
+  std::string Check() const;
+};
+
+class SequenceMatcher {
+ public:
+  static constexpr size_t kMaxEvidencePerFrame = 64;
+
+  // `keyframes`: the database's keyframe table (PlaceDatabase::keyframes()).
+  SequenceMatcher(const std::vector<Keyframe>& keyframes, const SequenceOptions& options);
+
+  // Adds `frame` (a single-frame answer) as the newest frame and returns it
+  // with the sequence's decision.
+  QueryResult Feed(QueryResult frame);
+
+  // Forgets every frame.
+  void Reset();
+  // A new keyframe table (after additions or removals); resets.
+  void SetKeyframes(const std::vector<Keyframe>& keyframes);
+
+  size_t frames_held() const { return frames_.size(); }
+  size_t num_keyframes() const { return order_.size(); }
+  const SequenceOptions& options() const { return options_; }
+
+ private:
+  struct FrameEvidence {
+    std::vector<std::pair<int32_t, double>> entries;  // (position, score), by position
+    double Lookup(int64_t position) const;
+  };
+
+  SequenceOptions options_;
+  std::vector<Keyframe> order_;                    // keyframes in sequence order (no features)
+  std::unordered_map<int32_t, int32_t> position_;  // keyframe id -> index in order_
+  std::vector<double> velocities_;
+  std::deque<FrameEvidence> frames_;  // newest first
+};
+
+}  // namespace placedb

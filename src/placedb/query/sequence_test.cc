@@ -1,0 +1,198 @@
+// SequenceMatcher on synthetic frame answers: what each frame ranks is set
+// here, so the path the matcher must find is known.
+#include "placedb/query/sequence.h"
+
+#include <gtest/gtest.h>
+
+#include <random>
+#include <vector>
+
+#include "placedb/util/error.h"
+
+namespace placedb {
+namespace {
+
+std::vector<Keyframe> Keyframes(int n, bool timed = true) {
+  std::vector<Keyframe> k(static_cast<size_t>(n));
+  for (int i = 0; i < n; ++i) {
+    k[static_cast<size_t>(i)].id = i + 1;
+    k[static_cast<size_t>(i)].timestamp = timed ? 100.0 + i : -1.0;
+  }
+  return k;
+}
+
+// A frame's answer: `entries` (id, score) ranked as given; matched when the
+// first scores at least `min_score`.
+QueryResult Frame(const std::vector<std::pair<int32_t, double>>& entries, double min_score = 12.0) {
+  QueryResult r;
+  for (const auto& [id, score] : entries) {
+    RankedKeyframe k;
+    k.keyframe_id = id;
+    k.score = score;
+    r.ranked.push_back(k);
+  }
+  r.matched = !r.ranked.empty() && r.ranked.front().score >= min_score;
+  return r;
+}
+
+TEST(SequenceMatcherTest, AConsistentPathBeatsStrongerScatteredAnswers) {
+  // The camera passes keyframes 10, 11, 12, ... one per frame. Each frame
+  // ranks its true keyframe second (score 8) behind a random wrong one (9).
+  SequenceOptions options;
+  options.min_score = 6.0;
+  options.min_length = options.length;  // SeqSLAM's fixed length
+  SequenceMatcher matcher(Keyframes(200), options);
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<int> any(1, 200);
+  int sequence_right = 0, frame_right = 0;
+  for (int t = 0; t < 30; ++t) {
+    const int32_t truth = 10 + t;
+    int32_t wrong = any(rng);
+    while (std::abs(wrong - truth) < 3) wrong = any(rng);
+    const QueryResult r = matcher.Feed(Frame({{wrong, 9.0}, {truth, 8.0}}));
+    ASSERT_TRUE(r.sequence.has_value());
+    EXPECT_EQ(r.sequence->frame_keyframe_id, wrong);
+    frame_right += r.sequence->frame_keyframe_id == truth;
+    if (t == 0) {
+      EXPECT_EQ(r.decided_by, "frame");  // one frame is no sequence
+      continue;
+    }
+    EXPECT_EQ(r.decided_by, "sequence");
+    if (t >= 2) {
+      EXPECT_EQ(r.ranked.front().keyframe_id, truth) << "frame " << t;
+      EXPECT_TRUE(r.matched);
+      EXPECT_DOUBLE_EQ(r.sequence->velocity, 1.0);
+      EXPECT_EQ(r.decision_score(), r.sequence->score);
+    }
+    sequence_right += r.ranked.front().keyframe_id == truth;
+  }
+  EXPECT_EQ(frame_right, 0);
+  EXPECT_GE(sequence_right, 28);
+  EXPECT_EQ(matcher.frames_held(), 10u);
+}
+
+TEST(SequenceMatcherTest, FindsTheEndAFrameDidNotRankAndKeepsTheListLength) {
+  SequenceMatcher matcher(Keyframes(50), SequenceOptions());
+  for (int t = 0; t < 6; ++t) matcher.Feed(Frame({{20 + t, 10.0}, {3, 1.0}}));
+  // The newest frame ranks neither 26 nor anything near it.
+  const QueryResult r = matcher.Feed(Frame({{40, 2.0}, {41, 1.0}}));
+  EXPECT_EQ(r.decided_by, "sequence");
+  ASSERT_EQ(r.ranked.size(), 2u);
+  EXPECT_EQ(r.ranked.front().keyframe_id, 26);
+  EXPECT_EQ(r.ranked.front().score, 0.0);
+  EXPECT_EQ(r.ranked.front().timestamp, 125.0);
+  EXPECT_EQ(r.ranked[1].keyframe_id, 40);
+  EXPECT_NEAR(r.sequence->score, 60.0 / 7.0, 1e-12);
+}
+
+TEST(SequenceMatcherTest, AConfidentFrameThePathDoesNotFollowAnswersAndResetForgets) {
+  SequenceOptions options;
+  options.min_score = 5.5;
+  options.min_length = options.length;
+  SequenceMatcher matcher(Keyframes(100), options);
+  for (int t = 0; t < 5; ++t) matcher.Feed(Frame({{10 + t, 6.0}}));
+  // A jump to keyframe 80, confident (30 >= 12). The best paths, 10..14 ->
+  // 15 and 80 standing still, both have mean 30 / 6 = 5 < 5.5: the frame
+  // answers.
+  const QueryResult jump = matcher.Feed(Frame({{80, 30.0}}));
+  EXPECT_EQ(jump.decided_by, "frame");
+  EXPECT_TRUE(jump.matched);
+  EXPECT_EQ(jump.ranked.front().keyframe_id, 80);
+  EXPECT_DOUBLE_EQ(jump.sequence->score, 5.0);
+  EXPECT_EQ(jump.decision_score(), 30.0);
+  // With the default min_length of 2, the jump's frame and the one before
+  // (which did not see 80) already make a path: mean 15.
+  SequenceMatcher quick(Keyframes(100), SequenceOptions());
+  for (int t = 0; t < 5; ++t) quick.Feed(Frame({{10 + t, 6.0}}));
+  const QueryResult followed = quick.Feed(Frame({{80, 30.0}}));
+  EXPECT_EQ(followed.decided_by, "sequence");
+  EXPECT_EQ(followed.ranked.front().keyframe_id, 80);
+  EXPECT_DOUBLE_EQ(followed.sequence->score, 15.0);
+  EXPECT_EQ(followed.sequence->frames, 2);
+  matcher.Reset();
+  EXPECT_EQ(matcher.frames_held(), 0u);
+  const QueryResult after = matcher.Feed(Frame({{80, 30.0}}));
+  EXPECT_EQ(after.decided_by, "frame");
+  EXPECT_EQ(after.sequence->frames, 1);
+  EXPECT_EQ(after.sequence->keyframe_id, 80);
+}
+
+TEST(SequenceMatcherTest, SlowAndBackwardCamerasFollowTheirVelocity) {
+  SequenceOptions slow;
+  slow.min_velocity = 0.0;
+  slow.max_velocity = 1.0;
+  slow.velocity_steps = 5;
+  SequenceMatcher half(Keyframes(100), slow);
+  QueryResult r;
+  for (int t = 0; t < 12; ++t) r = half.Feed(Frame({{30 + (t + 1) / 2, 7.0}, {90 - t, 7.5}}));
+  // The true path moves half a keyframe per frame; the distractor runs
+  // backwards, which this range does not allow.
+  EXPECT_EQ(r.ranked.front().keyframe_id, 30 + 12 / 2);
+  EXPECT_DOUBLE_EQ(r.sequence->velocity, 0.5);
+
+  SequenceOptions back;
+  back.min_length = back.length;
+  back.min_velocity = -2.0;
+  back.max_velocity = 2.0;
+  SequenceMatcher both(Keyframes(100), back);
+  for (int t = 0; t < 12; ++t) r = both.Feed(Frame({{30 + t / 3, 7.0}, {90 - t, 7.5}}));
+  EXPECT_EQ(r.ranked.front().keyframe_id, 90 - 11);
+  EXPECT_DOUBLE_EQ(r.sequence->velocity, -1.0);
+}
+
+TEST(SequenceMatcherTest, OrderIsByTimestampElseIdAndUnknownIdsAreIgnored) {
+  std::vector<Keyframe> k = Keyframes(30);
+  // Ids out of time order: id 30 was taken first.
+  k[29].timestamp = 1.0;
+  SequenceOptions full;
+  full.min_length = full.length;
+  SequenceMatcher timed(k, full);
+  QueryResult r;
+  for (int t = 0; t < 4; ++t) r = timed.Feed(Frame({{t == 0 ? 30 : t, 8.0}, {999, 50.0}}));
+  EXPECT_EQ(r.ranked.front().keyframe_id, 3);
+  EXPECT_NEAR(r.sequence->score, 8.0, 1e-12);  // 30, 1, 2, 3 are one path
+  EXPECT_EQ(r.sequence->frame_keyframe_id, 3);
+
+  k[5].timestamp = -1.0;  // not every keyframe has a time: id order
+  SequenceMatcher untimed(k, full);
+  for (int t = 0; t < 4; ++t) r = untimed.Feed(Frame({{t == 0 ? 30 : t, 8.0}}));
+  EXPECT_NEAR(r.sequence->score, 6.0, 1e-12);  // 30 is not before 1 any more
+
+  std::vector<Keyframe> twice = Keyframes(3);
+  twice[2].id = 1;
+  EXPECT_THROW(SequenceMatcher(twice, SequenceOptions()), InvalidArgument);
+}
+
+TEST(SequenceMatcherTest, OptionsAreChecked) {
+  SequenceOptions o;
+  o.min_velocity = 2.0;
+  o.max_velocity = 1.0;
+  EXPECT_NE(o.Check().find("sequence_min_velocity"), std::string::npos);
+  EXPECT_THROW(SequenceMatcher(Keyframes(3), o), InvalidArgument);
+  o = SequenceOptions();
+  o.length = 0;
+  EXPECT_NE(o.Check(), "");
+  o = SequenceOptions();
+  EXPECT_EQ(o.Check(), "");
+}
+
+TEST(SequenceMatcherTest, TheSequencePartTravelsAsJson) {
+  SequenceMatcher matcher(Keyframes(40), SequenceOptions());
+  QueryResult r;
+  for (int t = 0; t < 5; ++t) r = matcher.Feed(Frame({{5 + t, 20.0}}));
+  ASSERT_EQ(r.decided_by, "sequence");
+  const QueryResult back = QueryResultFromJson(QueryResultToJson(r));
+  EXPECT_EQ(back.decided_by, "sequence");
+  ASSERT_TRUE(back.sequence.has_value());
+  EXPECT_EQ(*back.sequence, *r.sequence);
+  // A worker's result has neither field and reads as a frame's.
+  const QueryResult plain = QueryResultFromJson(QueryResultToJson(Frame({{3, 20.0}})));
+  EXPECT_EQ(plain.decided_by, "frame");
+  EXPECT_FALSE(plain.sequence.has_value());
+  std::string no_part = QueryResultToJson(r);
+  no_part.replace(no_part.find("\"decided_by\":\"sequence\""), 23, "\"decided_by\":\"guess\"");
+  EXPECT_THROW(QueryResultFromJson(no_part), InvalidArgument);
+}
+
+}  // namespace
+}  // namespace placedb
