@@ -20,6 +20,11 @@ const OptionTable<VoteOptions>& VoteOptions::Table() {
     // runs no query, so neither a query deadline nor a prior applies.
     t.Nest(PLACEDB_MEMBER(O, query), QueryOptions::Table(), kCommandLine,
            {"deadline_ms", "prior_keyframe", "prior_pose"});
+    t.Bool("sequence", PLACEDB_MEMBER(O, sequence),
+           "answer with sequence evidence: the best path through the keyframe order over each "
+           "feed run's last frames (`sequence_*`)",
+           BoolFlag::kSwitch, kCommandLine);
+    t.Nest(PLACEDB_MEMBER(O, sequence_options), SequenceOptions::Table(), kCommandLine);
     return t;
   }();
   return table;

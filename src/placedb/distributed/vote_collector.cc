@@ -146,7 +146,28 @@ std::vector<FrameAnswer> VoteCollector::Poll(double now_ms) {
   const uint64_t window = static_cast<uint64_t>(options_.max_pending);
   if (any_answered_ && newest_answered_ > window)
     answered_.erase(answered_.begin(), answered_.lower_bound(newest_answered_ - window));
+  if (options_.sequence) {
+    if (!sequence_) {
+      PLACEDB_THROW_INVALID("`sequence` is on but the vote has no keyframe table (UseSequence)");
+    }
+    for (FrameAnswer& a : ready) {
+      if (a.run != sequence_run_) {
+        sequence_->Reset();
+        sequence_run_ = a.run;
+        sequence_last_.reset();
+      }
+      if (sequence_last_ && a.frame_seq <= *sequence_last_) continue;  // late: by itself
+      sequence_last_ = a.frame_seq;
+      a.result = sequence_->Feed(std::move(a.result));
+    }
+  }
   return ready;
+}
+
+void VoteCollector::UseSequence(const std::vector<Keyframe>& keyframes) {
+  sequence_.emplace(keyframes, options_.sequence_options);
+  sequence_run_.clear();
+  sequence_last_.reset();
 }
 
 void DescribeKeyframes(const PlaceDatabase& keyframes, QueryResult* result) {

@@ -9,11 +9,13 @@
 
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <set>
 #include <string>
 #include <vector>
 
 #include "placedb/query/result.h"
+#include "placedb/query/sequence.h"
 #include "placedb/util/option_table.h"
 
 namespace placedb {
@@ -33,6 +35,12 @@ struct VoteOptions {
   // How answers rank and decide (top_k, verification, min_score): the
   // options the workers ran with, before ForPartition.
   QueryOptions query;
+  // Answer with sequence evidence (query/sequence.h): each run's answers are
+  // fed, in frame order, to a SequenceMatcher over the keyframe table given
+  // to VoteCollector::UseSequence. A frame answered after a newer one (at
+  // its deadline) is answered by itself. Default off.
+  bool sequence = false;
+  SequenceOptions sequence_options;
 
   // The options' names, defaults, ranges and help (util/option_table.h).
   static const OptionTable<VoteOptions>& Table();
@@ -90,6 +98,9 @@ class VoteCollector {
   // The frames that are ready at `now_ms` (complete, or past their deadline,
   // or evicted), in frame order. Each frame is answered once.
   std::vector<FrameAnswer> Poll(double now_ms);
+  // With options().sequence: the keyframe table the paths run through
+  // (PlaceDatabase::keyframes()); required before the first Poll.
+  void UseSequence(const std::vector<Keyframe>& keyframes);
 
   size_t pending() const { return pending_.size(); }
   const VoteOptions& options() const { return options_; }
@@ -126,6 +137,9 @@ class VoteCollector {
   uint64_t newest_announced_ = 0;
   std::string run_;
   VoteStats stats_;
+  std::optional<SequenceMatcher> sequence_;
+  std::string sequence_run_;
+  std::optional<uint64_t> sequence_last_;  // the newest frame fed in sequence_run_
 };
 
 // Fills each ranked keyframe's pose, timestamp and source from the database

@@ -2,15 +2,14 @@
 
 #include <gtest/gtest.h>
 
-#include <nlohmann/json.hpp>
-
 #include <algorithm>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <random>
 
+#include "placedb/builder/builder.h"
 #include "placedb/dataset/image_folder.h"
 #include "placedb/dataset/tum.h"
-#include "placedb/builder/builder.h"
 #include "placedb/session/place_database.h"
 #include "placedb/util/testing.h"
 
@@ -59,6 +58,67 @@ TEST(VoteCollectorTest, CompleteFramesAreAnsweredAtOnce) {
   EXPECT_EQ(a.result.num_keyframes, 30u);
   EXPECT_EQ(c.pending(), 0u);
   EXPECT_TRUE(c.Poll(500).empty());  // answered once
+}
+
+// With `sequence`, each run's answers go through a SequenceMatcher in frame
+// order: a path along the keyframe order wins over a stronger stray answer,
+// a new run starts a new path, and a frame answered after a newer one
+// answers by itself.
+TEST(VoteCollectorTest, SequenceEvidenceFollowsEachRun) {
+  VoteOptions o;
+  o.num_partitions = 2;
+  o.deadline_ms = 100;
+  o.sequence = true;
+  o.sequence_options.min_score = 5;
+  VoteCollector c(o);
+  c.OnFrame(1, 0.0, "run-a");
+  EXPECT_THROW(c.Poll(1000.0), InvalidArgument);  // no keyframe table
+  std::vector<Keyframe> table(50);
+  for (size_t i = 0; i < table.size(); ++i) table[i].id = static_cast<int32_t>(i + 1);
+  VoteCollector v(o);
+  v.UseSequence(table);
+  // Frames 1..6: partition 0 sees the true keyframe 10 + t (8 inliers),
+  // partition 1 a stray keyframe 40 - 3t (9 inliers).
+  std::vector<FrameAnswer> answers;
+  for (uint64_t t = 1; t <= 6; ++t) {
+    v.OnFrame(t, 10.0 * t, "run-a");
+    v.OnPartial(t, 0, Partial(static_cast<int32_t>(9 + t), 8, 8), 10.0 * t + 1);
+    v.OnPartial(t, 1, Partial(static_cast<int32_t>(43 - 3 * t), 9, 9), 10.0 * t + 2);
+    for (FrameAnswer& a : v.Poll(10.0 * t + 3)) answers.push_back(std::move(a));
+  }
+  ASSERT_EQ(answers.size(), 6u);
+  EXPECT_EQ(answers[0].result.decided_by, "frame");
+  EXPECT_EQ(answers[0].result.ranked.front().keyframe_id, 40);
+  for (size_t i = 2; i < answers.size(); ++i) {
+    EXPECT_EQ(answers[i].result.decided_by, "sequence") << i;
+    EXPECT_EQ(answers[i].result.ranked.front().keyframe_id, static_cast<int32_t>(10 + i)) << i;
+    EXPECT_EQ(answers[i].result.sequence->frame_keyframe_id, static_cast<int32_t>(40 - 3 * i));
+  }
+  // A new run: the path starts over.
+  v.OnFrame(1, 100.0, "run-b");
+  v.OnPartial(1, 0, Partial(30, 8, 8), 101.0);
+  v.OnPartial(1, 1, Partial(31, 9, 9), 102.0);
+  std::vector<FrameAnswer> b = v.Poll(103.0);
+  ASSERT_EQ(b.size(), 1u);
+  EXPECT_EQ(b[0].run, "run-b");
+  EXPECT_EQ(b[0].result.decided_by, "frame");
+  EXPECT_EQ(b[0].result.sequence->frames, 1);
+  // Frame 2 waits for its deadline while frame 3 is complete: 3 is fed
+  // first, and 2, answered after it, answers by itself.
+  v.OnFrame(2, 110.0, "run-b");
+  v.OnPartial(2, 0, Partial(31, 8, 8), 111.0);
+  v.OnFrame(3, 120.0, "run-b");
+  v.OnPartial(3, 0, Partial(32, 8, 8), 121.0);
+  v.OnPartial(3, 1, Partial(5, 1, 1), 122.0);
+  b = v.Poll(123.0);
+  ASSERT_EQ(b.size(), 1u);
+  EXPECT_EQ(b[0].frame_seq, 3u);
+  EXPECT_EQ(b[0].result.decided_by, "sequence");
+  b = v.Poll(300.0);
+  ASSERT_EQ(b.size(), 1u);
+  EXPECT_EQ(b[0].frame_seq, 2u);
+  EXPECT_FALSE(b[0].result.sequence.has_value());
+  EXPECT_EQ(b[0].result.decided_by, "frame");
 }
 
 // A partition that never answers: at the deadline the frame is answered

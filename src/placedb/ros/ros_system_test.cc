@@ -208,6 +208,54 @@ TEST_F(RosSystemTest, WorkersOnExtractedFeatures) {
   }
 }
 
+// The voter with --sequence: each answer equals the single-process answers
+// fed, in frame order, through a SequenceMatcher over the same keyframes.
+TEST_F(RosSystemTest, TheVoterAnswersWithSequenceEvidence) {
+  const std::string ns = "/sequence";
+  Start({"placedb_voter", "--db", Db(), "--partitions", "2", "--deadline-ms", kNoDeadline,
+         "--sequence", "--sequence-length", "5", "--answers-file", Path("sequence_answers.jsonl")},
+        "sequence_voter.log", ns);
+  for (int i = 0; i < 2; ++i) {
+    Start({"placedb_worker", "--db", Db(), "--partition", std::to_string(i) + "/2"},
+          "sequence_worker" + std::to_string(i) + ".log", ns);
+  }
+  // 2 workers + the gate. The feed waits for each answer, so frames are
+  // answered in order.
+  const pid_t feed = Start({"placedb_feed", "--images", kImages, "--first", "41", "--last", "56",
+                            "--wait-for", "2", "--rate", "0", "--answer-timeout-ms", kNoDeadline},
+                           "sequence_feed.log", ns);
+  const std::vector<std::string> workers = {ns + "/placedb_worker_0", ns + "/placedb_worker_1"};
+  ASSERT_TRUE(WaitLinked(workers, ns + "/partial_results", {ns + "/placedb_voter"}))
+      << ReadLog("sequence_voter.log");
+  ASSERT_TRUE(WaitLinked({ns + "/placedb_voter"}, ns + "/answers", {ns + "/placedb_feed"}))
+      << ReadLog("sequence_feed.log");
+  const ros::Subscriber gate = OpenGate(ns);
+  ASSERT_EQ(WaitExit(feed, kRunLimit), 0) << ReadLog("sequence_feed.log");
+  const std::vector<nlohmann::json> answers = WaitLines(Path("sequence_answers.jsonl"), 16);
+  ASSERT_EQ(answers.size(), 16u) << ReadLog("sequence_voter.log");
+  const std::vector<QueryResult> frames = SingleProcess(QueryOptions());
+  SequenceOptions options;
+  options.length = 5;
+  OpenOptions table;
+  table.keyframe_table = true;
+  SequenceMatcher matcher(PlaceDatabase::Open(Db(), table).keyframes(), options);
+  int by_sequence = 0;
+  for (size_t i = 0; i < answers.size(); ++i) {
+    const nlohmann::json& a = answers[i];
+    ASSERT_EQ(a["frame_seq"].get<uint64_t>(), i);
+    const QueryResult expected = matcher.Feed(frames[i]);
+    const QueryResult got = QueryResultFromJson(a["result"].dump());
+    EXPECT_EQ(got.decided_by, expected.decided_by) << "frame " << i;
+    ASSERT_TRUE(got.sequence.has_value());
+    EXPECT_EQ(got.sequence->keyframe_id, expected.sequence->keyframe_id) << "frame " << i;
+    EXPECT_EQ(got.matched, expected.matched) << "frame " << i;
+    EXPECT_EQ(got.ranked.front().keyframe_id, expected.ranked.front().keyframe_id) << "frame " << i;
+    by_sequence += got.decided_by == "sequence";
+  }
+  EXPECT_GE(by_sequence, 14);
+  EXPECT_NE(ReadLog("sequence_voter.log").find("sequence evidence"), std::string::npos);
+}
+
 // A worker killed (SIGKILL) is answered around and rejoins: the drill of
 // ros_testing::RunKillDrill, worker 1 of 3 killed.
 TEST_F(RosSystemTest, AKilledWorkerIsAnsweredAroundAndRejoins) {

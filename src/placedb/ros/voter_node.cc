@@ -35,6 +35,7 @@ class Voter {
         map_frame_(std::move(map_frame)),
         database_id_(keyframes_.generation()),
         drops_("placedb_voter") {
+    if (collector_.options().sequence) collector_.UseSequence(keyframes_.keyframes());
     if (!answers_file.empty()) {
       answers_log_.open(answers_file, std::ios::app);
       if (!answers_log_.good()) throw IoError("cannot write " + answers_file);
@@ -221,7 +222,8 @@ int main(int argc, char** argv) {
                "placedb_voter"};
   placedb::ros_node::AddExamples(
       app, {"placedb_voter --db out/demo/db_tum_office --partitions 3 --answers-file answers.jsonl",
-            "placedb_voter --db DB --partitions 4 --partition-scheme interleaved --deadline-ms 200"});
+            "placedb_voter --db DB --partitions 4 --partition-scheme interleaved --deadline-ms 200",
+            "placedb_voter --db DB --partitions 2 --sequence --sequence-length 10"});
   std::string dir, scheme = "contiguous", map_frame = "map", answers_file;
   double stats_period_s = 10.0;
   placedb::VoteOptions vote;
@@ -252,8 +254,9 @@ int main(int argc, char** argv) {
     placedb::OpenOptions table;
     table.keyframe_table = true;
     placedb::PlaceDatabase keyframes = placedb::PlaceDatabase::Open(dir, table);
-    ROS_INFO("placedb_voter: %zu keyframes of %s in %d partitions (%s), deadline %.0f ms",
-             keyframes.size(), dir.c_str(), vote.num_partitions, scheme.c_str(), vote.deadline_ms);
+    ROS_INFO("placedb_voter: %zu keyframes of %s in %d partitions (%s), deadline %.0f ms%s",
+             keyframes.size(), dir.c_str(), vote.num_partitions, scheme.c_str(), vote.deadline_ms,
+             vote.sequence ? ", sequence evidence" : "");
     placedb::Voter voter(std::move(keyframes), vote, scheme, map_frame, answers_file,
                          stats_period_s);
     ros::spin();
