@@ -464,14 +464,15 @@ void UseTheBuildTree() {
 }
 
 // feed_required defaults to false: when the feed has published its frames
-// (and exited), the voter and the workers stay up for more feeds.
+// (and exited), the voter and the workers stay up for more feeds. (And
+// voter_args reaches the voter: --sequence.)
 TEST_F(RosSystemTest, TheLaunchStaysUpAfterTheFeedByDefault) {
   UseTheBuildTree();
   const std::string ns = "/launched_stays";
   const pid_t launch = Start(
       {"roslaunch", "placedb", "placedb.launch", "db:=" + Db(), "workers:=2",
        "deadline_ms:=" + kNoDeadline, "images:=" + kImages,
-       "answers_file:=" + Path("stays_answers.jsonl"),
+       "answers_file:=" + Path("stays_answers.jsonl"), "voter_args:=--sequence",
        "feed_args:=--rate 0 --first 80 --answer-timeout-ms " + kNoDeadline},
       "launch_stays.log", ns);
   const std::vector<std::string> workers = {ns + "/placedb_worker_0", ns + "/placedb_worker_1"};
@@ -480,7 +481,12 @@ TEST_F(RosSystemTest, TheLaunchStaysUpAfterTheFeedByDefault) {
   ASSERT_TRUE(WaitLinked({ns + "/placedb_voter"}, ns + "/answers", {ns + "/placedb_feed"}))
       << ReadLog("launch_stays.log");
   const ros::Subscriber gate = OpenGate(ns);
-  ASSERT_EQ(WaitLines(Path("stays_answers.jsonl"), 5).size(), 5u) << ReadLog("launch_stays.log");
+  const std::vector<nlohmann::json> answers = WaitLines(Path("stays_answers.jsonl"), 5);
+  ASSERT_EQ(answers.size(), 5u) << ReadLog("launch_stays.log");
+  // voter_args:=--sequence reached the voter: from the second frame on, the
+  // sequence answers.
+  for (size_t i = 1; i < answers.size(); ++i)
+    EXPECT_EQ(answers[i]["result"]["decided_by"], "sequence") << "frame " << i;
   // roslaunch reports the feed's end; then the launch is still up.
   ASSERT_TRUE(WaitUntil([&] {
     // "[launched_stays/placedb_feed-5] process has finished cleanly"
