@@ -18,6 +18,10 @@ int DescriptorBytes(const ExtractorOptions& options) {
   return (options.surf.extended ? 128 : 64) * static_cast<int>(sizeof(float));
 }
 
+int WholeImageDims(const ExtractorOptions& options) {
+  return options.whole_image.enabled ? options.whole_image.width * options.whole_image.height : 0;
+}
+
 namespace {
 
 class OrbExtractor : public FeatureExtractor {

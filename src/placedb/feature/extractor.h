@@ -13,6 +13,9 @@ namespace placedb {
 
 // Bytes per descriptor row the options produce: 32 (ORB), 256 or 512 (SURF).
 int DescriptorBytes(const ExtractorOptions& options);
+// Values per whole-image row the options produce: width x height, 0 when
+// the channel is off.
+int WholeImageDims(const ExtractorOptions& options);
 
 class FeatureExtractor {
  public:
