@@ -43,7 +43,8 @@ std::vector<TableCase> AllTables() {
           Case<BuildOptions>(),       Case<OpenOptions>(),      Case<ImageReadOptions>(),
           Case<TumOptions>(),         Case<FrameSourceOptions>(), Case<PoseThresholds>(),
           Case<GroundTruthOptions>(), Case<EvalOptions>(),      Case<BenchOptions>(),
-          Case<ExperimentOptions>(),  Case<VoteOptions>(),      Case<AddOptions>()};
+          Case<ExperimentOptions>(),  Case<VoteOptions>(),      Case<AddOptions>(),
+          Case<WholeImageOptions>()};
 }
 
 // Every table of the library is one an entry point takes (the list `placedb
@@ -246,6 +247,12 @@ TEST(OptionTablesTest, EveryManifestSettingRoundTripsAndIsRequired) {
       if (f.name == "vocabulary_depth") o.vocabulary.branching = 2;
       if (f.name == "vocabulary_branching") o.vocabulary.depth = 2;
       if (f.name == "direct_level") o.vocabulary.depth = 8, o.vocabulary.branching = 2;
+      // The tile must fit the thumbnail: small sides with small tiles, large
+      // tiles in large thumbnails.
+      if (f.name == "whole_image_width" || f.name == "whole_image_height")
+        o.features.whole_image.patch = 2;
+      if (f.name == "whole_image_patch")
+        o.features.whole_image.width = o.features.whole_image.height = 64;
       e.set(&o, v);
       ASSERT_EQ(o.Check(), "") << OptionTableBase::Text(v);
       nlohmann::json manifest;

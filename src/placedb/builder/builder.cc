@@ -16,6 +16,7 @@
 #include <mutex>
 #include <opencv2/imgcodecs.hpp>
 
+#include "placedb/feature/whole_image.h"
 #include "placedb/image/resize.h"
 #include "placedb/util/check.h"
 #include "placedb/util/checksum.h"
@@ -46,6 +47,50 @@ IndexKind ParseIndexKind(const std::string& name) {
   PLACEDB_THROW_INVALID("unknown index '", name, "' (expected none or bow)");
 }
 
+namespace {
+
+// The features of a processed frame (crop and stored image settled in
+// `out`): on the stored image, or, in context, those of the resized whole
+// frame inside the crop.
+void ExtractStored(const cv::Mat& image, const BuildOptions& options,
+                   const FeatureExtractor& extractor, ProcessedFrame* processed) {
+  ProcessedFrame& out = *processed;
+  const Keyframe& k = out.keyframe;
+  const bool whole = k.crop == cv::Rect(0, 0, image.cols, image.rows);
+  if (!options.extract_in_context || whole) {
+    out.features = extractor.Extract(out.stored_image);
+    return;
+  }
+  // Features of the resized whole frame that fall inside the (resized) crop,
+  // moved into the stored image's frame.
+  const cv::Mat resized = ResizeByArea(image, options.resize);
+  const double s = SideScaleForAreaDivisor(options.resize);
+  const FeatureSet all = extractor.Extract(resized);
+  out.features.type = all.type;
+  out.features.descriptors = cv::Mat(0, all.descriptors.cols, all.descriptors.type());
+  const cv::Rect_<double> roi(k.crop.x * s, k.crop.y * s, k.stored_size.width,
+                              k.stored_size.height);
+  std::vector<int> keep;
+  for (size_t i = 0; i < all.keypoints.size(); ++i) {
+    const cv::Point2f& p = all.keypoints[i].pt;
+    if (p.x >= roi.x && p.y >= roi.y && p.x < roi.x + roi.width && p.y < roi.y + roi.height) {
+      keep.push_back(static_cast<int>(i));
+    }
+  }
+  if (keep.empty()) return;
+  out.features.descriptors.create(static_cast<int>(keep.size()), all.descriptors.cols,
+                                  all.descriptors.type());
+  for (size_t j = 0; j < keep.size(); ++j) {
+    cv::KeyPoint kp = all.keypoints[keep[j]];
+    kp.pt.x -= static_cast<float>(roi.x);
+    kp.pt.y -= static_cast<float>(roi.y);
+    out.features.keypoints.push_back(kp);
+    all.descriptors.row(keep[j]).copyTo(out.features.descriptors.row(static_cast<int>(j)));
+  }
+}
+
+}  // namespace
+
 ProcessedFrame ProcessFrame(const Frame& frame, const cv::Mat& image, const BuildOptions& options,
                             const FeatureExtractor& extractor) {
   ProcessedFrame out;
@@ -68,36 +113,17 @@ ProcessedFrame ProcessFrame(const Frame& frame, const cv::Mat& image, const Buil
   }
   k.stored_size = out.stored_image.size();
   k.scale = cropped.cols > 0 ? static_cast<double>(k.stored_size.width) / cropped.cols : 1.0;
-  const bool whole = k.crop == cv::Rect(0, 0, image.cols, image.rows);
-  if (!options.extract_in_context || whole) {
-    out.features = extractor.Extract(out.stored_image);
-    return out;
-  }
-  // Features of the resized whole frame that fall inside the (resized) crop,
-  // moved into the stored image's frame.
-  const cv::Mat resized = ResizeByArea(image, options.resize);
-  const double s = SideScaleForAreaDivisor(options.resize);
-  const FeatureSet all = extractor.Extract(resized);
-  out.features.type = all.type;
-  out.features.descriptors = cv::Mat(0, all.descriptors.cols, all.descriptors.type());
-  const cv::Rect_<double> roi(k.crop.x * s, k.crop.y * s, k.stored_size.width,
-                              k.stored_size.height);
-  std::vector<int> keep;
-  for (size_t i = 0; i < all.keypoints.size(); ++i) {
-    const cv::Point2f& p = all.keypoints[i].pt;
-    if (p.x >= roi.x && p.y >= roi.y && p.x < roi.x + roi.width && p.y < roi.y + roi.height) {
-      keep.push_back(static_cast<int>(i));
-    }
-  }
-  if (keep.empty()) return out;
-  out.features.descriptors.create(static_cast<int>(keep.size()), all.descriptors.cols,
-                                  all.descriptors.type());
-  for (size_t j = 0; j < keep.size(); ++j) {
-    cv::KeyPoint kp = all.keypoints[keep[j]];
-    kp.pt.x -= static_cast<float>(roi.x);
-    kp.pt.y -= static_cast<float>(roi.y);
-    out.features.keypoints.push_back(kp);
-    all.descriptors.row(keep[j]).copyTo(out.features.descriptors.row(static_cast<int>(j)));
+  ExtractStored(image, options, extractor, &out);
+  // The whole-image row is the whole frame's (as given: before crop and
+  // resize), also for a cropped keyframe: what a query's Extract gives.
+  // The extractor computed it on the stored image already when that is
+  // the frame itself.
+  const bool frame_as_given =
+      k.crop == cv::Rect(0, 0, image.cols, image.rows) && options.resize == 1;
+  if (!options.features.whole_image.enabled) {
+    out.features.whole_image.release();
+  } else if (!frame_as_given || out.features.whole_image.empty()) {
+    out.features.whole_image = ComputeWholeImageDescriptor(image, options.features.whole_image);
   }
   return out;
 }
@@ -343,7 +369,8 @@ BuildReport BuildDatabase(const std::vector<Frame>& frames, const BuildOptions& 
 
     BuildReport report;
     report.num_frames = frames.size();
-    Database db(options.features.type, DescriptorBytes(options.features));
+    Database db(options.features.type, DescriptorBytes(options.features),
+                WholeImageDims(options.features));
     for (size_t i = 0; i < frames.size(); ++i) {
       if (!results[i]) {
         spdlog::warn("skipped unreadable image {} (frame {})", frames[i].image_path, frames[i].id);

@@ -47,7 +47,10 @@ struct ProcessedFrame {
   cv::Mat stored_image;
 };
 
-// Crop + resize + extract for one decoded image (no I/O).
+// Crop + resize + extract for one decoded image (no I/O). With
+// options.features.whole_image.enabled, features.whole_image is the whole
+// image's descriptor (ComputeWholeImageDescriptor of `image`: before crop
+// and resize), also for a cropped keyframe.
 ProcessedFrame ProcessFrame(const Frame& frame, const cv::Mat& image, const BuildOptions& options,
                             const FeatureExtractor& extractor);
 

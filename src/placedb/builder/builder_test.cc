@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -18,6 +19,7 @@
 #include <thread>
 
 #include "placedb/dataset/image_folder.h"
+#include "placedb/feature/whole_image.h"
 #include "placedb/util/file_io.h"
 #include "placedb/util/testing.h"
 
@@ -108,6 +110,12 @@ TEST(BuilderTest, CropModesAndResizeFactors) {
         char name[32];
         std::snprintf(name, sizeof(name), "images/%06d.png", k.id);
         EXPECT_EQ(k.image_file, name);
+        // The whole-image row is the whole frame's, also when cropped or
+        // resized.
+        ASSERT_EQ(db.whole_image_dims(), 768);
+        const cv::Mat row =
+            ComputeWholeImageDescriptor(cv::imread(frames[i].image_path), WholeImageOptions());
+        EXPECT_EQ(std::memcmp(db.WholeImage(i), row.data, 768), 0) << "keyframe " << k.id;
         const cv::Mat png = cv::imread(out + "/" + k.image_file, cv::IMREAD_UNCHANGED);
         ASSERT_FALSE(png.empty()) << k.image_file;
         EXPECT_EQ(png.size(), k.stored_size);
@@ -431,6 +439,51 @@ TEST(BuilderTest, KeyframesRecordTheirSourceHashAndTheManifestItsIds) {
   EXPECT_EQ(ids["next_free"], 6);
   EXPECT_EQ(ids["removed"], 0);
   EXPECT_EQ(ids["removed_since"], db.info()["created"]);
+}
+
+// The whole-image channel: built by default (the manifest says so), of the
+// size the options give; --no-whole-image builds a database without it,
+// whose manifest says enabled false, and whose keyframe file is what an
+// earlier placedb wrote (no whole-image section). Settings and file must
+// agree: a manifest that says otherwise is a corrupt database.
+TEST(BuilderTest, WholeImageChannel) {
+  TempDir tmp;
+  const std::vector<Frame> frames = ListImageFolder(kImages, 3, 6);
+  BuildOptions options = SmallBuild();
+  options.features.whole_image.width = 16;
+  options.features.whole_image.height = 12;
+  options.features.whole_image.patch = 4;
+  options.crop = CropMode::kChroma;
+  options.extract_in_context = false;
+  BuildDatabase(frames, options, tmp.Path("db"), "rtabmap 3..6");
+  const Database db = Database::Load(tmp.Path("db"));
+  ASSERT_EQ(db.whole_image_dims(), 192);
+  EXPECT_EQ(db.info()["whole_image_dims"], 192);
+  EXPECT_EQ(db.info()["settings"]["features"]["whole_image"]["enabled"], true);
+  ASSERT_NE(db.WholeImageData(), nullptr);
+  for (size_t i = 0; i < db.size(); ++i) {
+    const cv::Mat row =
+        ComputeWholeImageDescriptor(cv::imread(frames[i].image_path), options.features.whole_image);
+    EXPECT_EQ(std::memcmp(db.WholeImage(i), row.data, 192), 0) << i;
+    EXPECT_EQ(db.WholeImage(i), db.WholeImageData() + 192 * i);
+  }
+  BuildOptions without = SmallBuild();
+  without.features.whole_image.enabled = false;
+  BuildDatabase(frames, without, tmp.Path("plain"), "rtabmap 3..6");
+  const Database plain = Database::Load(tmp.Path("plain"));
+  EXPECT_EQ(plain.whole_image_dims(), 0);
+  EXPECT_EQ(plain.WholeImageData(), nullptr);
+  EXPECT_FALSE(plain.info().contains("whole_image_dims"));
+  EXPECT_EQ(plain.info()["settings"]["features"]["whole_image"]["enabled"], false);
+  // Settings read back; an older manifest (without the keys) reads as no
+  // channel.
+  EXPECT_EQ(BuildOptionsFromManifest(db.info(), "db").features.whole_image.width, 16);
+  nlohmann::json old = plain.info();
+  old["settings"]["features"].erase("whole_image");
+  const BuildOptions read = BuildOptionsFromManifest(old, "plain");
+  EXPECT_FALSE(read.features.whole_image.enabled);
+  EXPECT_EQ(read.features.whole_image.width, 32);
+  EXPECT_EQ(WholeImageDims(read.features), 0);
 }
 
 TEST(BuilderTest, ExistingDatabaseNeedsOverwrite) {

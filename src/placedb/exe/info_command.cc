@@ -53,6 +53,13 @@ class InfoCommand : public Command {
     fmt::print("source          {}\n", text("source"));
     fmt::print("features        {} ({} bytes per descriptor)\n", FeatureTypeName(db.feature_type()),
                db.descriptor_bytes());
+    if (db.whole_image_dims() > 0) {
+      const WholeImageOptions& w = b.features.whole_image;
+      fmt::print("whole image     {} x {} thumbnails, {}-px tiles ({} values per keyframe)\n",
+                 w.width, w.height, w.patch, db.whole_image_dims());
+    } else {
+      fmt::print("whole image     none\n");
+    }
     fmt::print("crop            {}\n", CropModeName(b.crop));
     fmt::print("resize          1/{} of the area\n", b.resize);
     fmt::print("upscale below   {} px (small frames are upscaled for extraction; 0: never)\n",

@@ -21,6 +21,7 @@
 
 #include "placedb/builder/builder.h"
 #include "placedb/exe/cli_testing.h"
+#include "placedb/feature/extractor.h"
 #include "placedb/storage/database.h"
 #include "placedb/storage/keyframe_file.h"
 #include "placedb/query/query.h"
@@ -539,7 +540,8 @@ TEST_F(CliTest, TinyImagesGiveZeroFeaturesWithoutError) {
 TEST_F(CliTest, QueryAgainstAnEmptyDatabaseSaysSo) {
   // Builds refuse to produce an empty database; one made through the library
   // is still handled.
-  placedb::Database empty(placedb::FeatureType::kOrb, 32);
+  placedb::Database empty(placedb::FeatureType::kOrb, 32,
+                          placedb::WholeImageDims(placedb::BuildOptions().features));
   empty.info()["settings"] = placedb::BuildSettingsToJson(placedb::BuildOptions());
   fs::create_directories(Path("empty"));
   empty.Save(Path("empty"));
@@ -550,6 +552,18 @@ TEST_F(CliTest, QueryAgainstAnEmptyDatabaseSaysSo) {
   const CommandResult info = Placedb("info --db " + Path("empty"));
   EXPECT_EQ(info.code, 0);
   EXPECT_TRUE(Contains(info.output, "keyframes       0")) << info.output;
+  EXPECT_TRUE(Contains(info.output, "whole image     32 x 24 thumbnails, 8-px tiles (768 values"))
+      << info.output;
+  // Without the channel (a database of an earlier placedb), info says none.
+  placedb::Database plain(placedb::FeatureType::kOrb, 32);
+  placedb::BuildOptions no_channel;
+  no_channel.features.whole_image.enabled = false;
+  plain.info()["settings"] = placedb::BuildSettingsToJson(no_channel);
+  fs::create_directories(Path("plain"));
+  plain.Save(Path("plain"));
+  const CommandResult plain_info = Placedb("info --db " + Path("plain"));
+  EXPECT_EQ(plain_info.code, 0) << plain_info.output;
+  EXPECT_TRUE(Contains(plain_info.output, "whole image     none")) << plain_info.output;
 }
 
 TEST_F(CliTest, BenchComparesWithBfMatcher) {

@@ -6,6 +6,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "placedb/dataset/frame.h"
+#include "placedb/feature/whole_image.h"
 #include "placedb/image/chromaticity.h"
 #include "placedb/util/check.h"
 #include "placedb/util/options.h"
@@ -15,6 +16,10 @@ namespace placedb {
 int DescriptorBytes(const ExtractorOptions& options) {
   if (options.type == FeatureType::kOrb) return 32;
   return (options.surf.extended ? 128 : 64) * static_cast<int>(sizeof(float));
+}
+
+int WholeImageDims(const ExtractorOptions& options) {
+  return options.whole_image.enabled ? options.whole_image.width * options.whole_image.height : 0;
 }
 
 namespace {
@@ -109,6 +114,25 @@ class UpscalingExtractor : public FeatureExtractor {
   int upscale_below_;
 };
 
+// Adds the whole-image descriptor of the image as given (before any
+// upscaling) to the inner extractor's features.
+class WholeImageExtractor : public FeatureExtractor {
+ public:
+  WholeImageExtractor(std::unique_ptr<FeatureExtractor> inner, const WholeImageOptions& options)
+      : inner_(std::move(inner)), options_(options) {}
+
+  FeatureSet Extract(const cv::Mat& image) const override {
+    FeatureSet set = inner_->Extract(image);
+    if (!image.empty()) set.whole_image = ComputeWholeImageDescriptor(image, options_);
+    return set;
+  }
+  FeatureType type() const override { return inner_->type(); }
+
+ private:
+  std::unique_ptr<FeatureExtractor> inner_;
+  WholeImageOptions options_;
+};
+
 }  // namespace
 
 std::unique_ptr<FeatureExtractor> FeatureExtractor::Create(const ExtractorOptions& options) {
@@ -125,6 +149,9 @@ std::unique_ptr<FeatureExtractor> FeatureExtractor::Create(const ExtractorOption
   if (!extractor) PLACEDB_THROW_INVALID("unknown feature type");
   if (options.upscale_below > 0) {
     extractor = std::make_unique<UpscalingExtractor>(std::move(extractor), options.upscale_below);
+  }
+  if (options.whole_image.enabled) {
+    extractor = std::make_unique<WholeImageExtractor>(std::move(extractor), options.whole_image);
   }
   return extractor;
 }

@@ -3,6 +3,9 @@
 #include "placedb/feature/options.h"
 #include "placedb/util/option_table.h"
 
+#include <algorithm>
+#include <string>
+
 namespace placedb {
 
 const OptionTable<OrbOptions>& OrbOptions::Table() {
@@ -28,6 +31,41 @@ const OptionTable<OrbOptions>& OrbOptions::Table() {
 
 std::string OrbOptions::Check() const { return Table().Check(*this); }
 
+const OptionTable<WholeImageOptions>& WholeImageOptions::Table() {
+  static const OptionTable<WholeImageOptions> table = [] {
+    using O = WholeImageOptions;
+    const O defaults;
+    OptionTable<O> t("whole-image options");
+    // Manifests written before the whole-image channel lack these keys:
+    // their databases have no channel, and the sizes mean nothing there.
+    t.Number("whole_image_width", PLACEDB_MEMBER(O, width), OptionRange::Closed(4, 64),
+             "whole image: thumbnail width, px")
+        .absent = int64_t{defaults.width};
+    t.Number("whole_image_height", PLACEDB_MEMBER(O, height), OptionRange::Closed(4, 64),
+             "whole image: thumbnail height, px")
+        .absent = int64_t{defaults.height};
+    t.Number("whole_image_patch", PLACEDB_MEMBER(O, patch), OptionRange::Closed(2, 64),
+             "whole image: side of the normalised tiles, px")
+        .absent = int64_t{defaults.patch};
+    t.Bool("whole_image", PLACEDB_MEMBER(O, enabled),
+           "whole-image channel: a patch-normalised thumbnail per image (SeqSLAM's)",
+           BoolFlag::kNegatable)
+        .absent = false;
+    t.Rule([](const O& o) -> std::string {
+      if (o.patch > std::min(o.width, o.height)) {
+        return "`whole_image_patch` must be at most the smaller of `whole_image_width` and "
+               "`whole_image_height` (" +
+               std::to_string(std::min(o.width, o.height)) + ")";
+      }
+      return "";
+    });
+    return t;
+  }();
+  return table;
+}
+
+std::string WholeImageOptions::Check() const { return Table().Check(*this); }
+
 const OptionTable<ExtractorOptions>& ExtractorOptions::Table() {
   static const OptionTable<ExtractorOptions> table = [] {
     using O = ExtractorOptions;
@@ -39,6 +77,7 @@ const OptionTable<ExtractorOptions>& ExtractorOptions::Table() {
     t.Number("upscale_below", PLACEDB_MEMBER(O, upscale_below), OptionRange::Closed(0, 4096),
              "small frames: upscale images whose shorter side is below this for extraction "
              "(0: never)");
+    t.Nest(PLACEDB_MEMBER(O, whole_image), WholeImageOptions::Table());
     return t;
   }();
   return table;

@@ -32,6 +32,25 @@ struct OrbOptions {
   std::string Check() const;
 };
 
+// The whole-image channel (feature/whole_image.h): SeqSLAM's
+// patch-normalised thumbnail, one row of width x height int8 values per
+// keyframe and query.
+struct WholeImageOptions {
+  // Thumbnail width and height, pixels. Range [4, 64]. Default 32 x 24.
+  int width = 32;
+  int height = 24;
+  // Side of the normalised tiles, pixels. Range [2, 64], at most
+  // min(width, height). Default 8.
+  int patch = 8;
+  // Whether extraction computes it (and a database keeps it). Default true;
+  // a manifest written before the channel existed reads as false.
+  bool enabled = true;
+
+  // The options' names, defaults, ranges and help (util/option_table.h).
+  static const OptionTable<WholeImageOptions>& Table();
+  std::string Check() const;
+};
+
 struct ExtractorOptions {
   // Which descriptor to compute. Default ORB.
   FeatureType type = FeatureType::kOrb;
@@ -44,6 +63,9 @@ struct ExtractorOptions {
   // [0, 4096]. Default 240 (measured on data/rtabmap_loop shrunk to 160x120:
   // recall@1 0.909 without, 0.977 with; 320x240 frames are not upscaled).
   int upscale_below = 240;
+  // The whole-image descriptor (FeatureSet::whole_image), computed on the
+  // image as given, before any upscaling.
+  WholeImageOptions whole_image;
 
   // The options' names, defaults, ranges and help (util/option_table.h).
   static const OptionTable<ExtractorOptions>& Table();

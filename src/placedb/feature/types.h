@@ -23,6 +23,9 @@ struct FeatureSet {
   std::vector<cv::KeyPoint> keypoints;
   // ORB: CV_8U, 32 columns. SURF: CV_32F, 64 or 128 columns.
   cv::Mat descriptors;
+  // The whole-image descriptor (feature/whole_image.h) of the image the
+  // features came from: 1 x D CV_8S, empty when not computed.
+  cv::Mat whole_image;
 
   size_t size() const { return keypoints.size(); }
   bool empty() const { return keypoints.empty(); }

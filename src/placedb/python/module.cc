@@ -755,6 +755,9 @@ PYBIND11_MODULE(placedb, m) {
       .def_property_readonly("descriptor_width", &DescriptorColumns,
                              "columns of a descriptor row: 32 (ORB, uint8), 64 or 128 (SURF, "
                              "float32)")
+      .def_property_readonly("whole_image_dims", &PlaceDatabase::whole_image_dims,
+                             "values per keyframe of the whole-image channel (width x height), "
+                             "0 when the database has none")
       .def_property_readonly("directory", &PlaceDatabase::directory)
       .def_property_readonly(
           "manifest", [](const PlaceDatabase& db) { return FromJsonText(db.manifest_json()); },

@@ -67,6 +67,7 @@ class PlaceDbTest(unittest.TestCase):
         self.assertEqual(len(db), 20)
         self.assertEqual(db.feature_type, "orb")
         self.assertEqual(db.descriptor_width, 32)
+        self.assertEqual(db.whole_image_dims, 32 * 24)
         self.assertEqual(os.path.realpath(db.directory), os.path.realpath(self.db_dir))
         self.assertEqual(db.keyframe_ids, list(range(1, 21)))
         m = db.manifest

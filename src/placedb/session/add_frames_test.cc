@@ -173,7 +173,8 @@ TEST_F(AddFramesTest, ExistingFramesAreKnownBySourceAndContent) {
   EXPECT_EQ(r.skipped, 4u);
 }
 
-// A database an earlier placedb wrote: no source hashes (0), no "ids" entry.
+// A database an earlier placedb wrote: no source hashes (0), no "ids" entry,
+// no whole-image channel.
 // Frames are known by path alone; the next free id follows the largest;
 // removals are "not recorded" until the next save starts counting.
 TEST_F(AddFramesTest, DatabasesWithoutHashesFallBackToThePath) {
@@ -188,9 +189,12 @@ TEST_F(AddFramesTest, DatabasesWithoutHashesFallBackToThePath) {
     }
     old.info() = built.info();
     old.info().erase("ids");
+    // Nor a whole-image channel: no section, no settings for it.
+    old.info()["settings"]["features"].erase("whole_image");
     old.Save(Dir());
   }
   PlaceDatabase db = PlaceDatabase::Open(Dir());
+  EXPECT_EQ(db.whole_image_dims(), 0);
   KeyframeIdSummary ids = db.id_summary();
   EXPECT_EQ(ids.next_free, 11);
   EXPECT_FALSE(ids.removed.has_value());

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <chrono>
+#include <cstring>
 #include <limits>
 #include <set>
 #include <opencv2/imgcodecs.hpp>
@@ -17,6 +18,7 @@
 
 #include "placedb/dataset/image_folder.h"
 #include "placedb/builder/builder.h"
+#include "placedb/feature/whole_image.h"
 #include "placedb/query/query.h"
 #include "placedb/session/place_database.h"
 #include "placedb/util/testing.h"
@@ -115,6 +117,50 @@ TEST_P(OnlineTest, AddRemoveSaveReopen) {
   }
   EXPECT_EQ(bow_files, GetParam() == IndexKind::kBow ? 1 : 0);
   EXPECT_EQ(keyframe_files, 1);
+}
+
+// The whole-image channel follows the keyframes: Add computes each row from
+// the whole frame, a keyframe added from features must bring its row, and
+// rows stay aligned with their keyframes through Remove, Save (Compacted)
+// and reopening.
+TEST_P(OnlineTest, WholeImageRowsFollowAddRemoveSave) {
+  const auto rows_match = [](const PlaceDatabase& session, size_t expected) {
+    const StorageView view(session);
+    const Database& d = view.database();
+    ASSERT_EQ(d.whole_image_dims(), 768);
+    ASSERT_EQ(d.size(), expected);
+    for (size_t i = 0; i < d.size(); ++i) {
+      const cv::Mat row =
+          ComputeWholeImageDescriptor(cv::imread(d.keyframe(i).source), WholeImageOptions());
+      EXPECT_EQ(std::memcmp(d.WholeImage(i), row.data, 768), 0) << "keyframe " << d.keyframe(i).id;
+    }
+  };
+  PlaceDatabase db = PlaceDatabase::Open(Dir());
+  EXPECT_EQ(db.whole_image_dims(), 768);
+  for (int id = 31; id <= 34; ++id) db.Add(FrameOf(id), cv::imread(RtabmapImage(id)));
+  rows_match(db, 34);
+  // From features: without a row (or with one of another size) refused.
+  const cv::Mat image = cv::imread(RtabmapImage(35));
+  FeatureSet features = db.Extract(image);
+  ASSERT_EQ(features.whole_image.cols, 768);
+  Keyframe k;
+  k.id = 35;
+  k.source = RtabmapImage(35);
+  k.original_size = k.stored_size = image.size();
+  k.crop = cv::Rect(0, 0, image.cols, image.rows);
+  FeatureSet without = features;
+  without.whole_image.release();
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.Add(k, without); }, "whole-image"));
+  without.whole_image = features.whole_image.colRange(0, 700).clone();
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.Add(k, without); }, "whole-image"));
+  db.Add(k, features);
+  EXPECT_EQ(cv::norm(db.KeyframeFeatures(35).whole_image, features.whole_image, cv::NORM_L1), 0.0);
+  EXPECT_TRUE(db.Remove(3));
+  EXPECT_TRUE(db.Remove(32));
+  rows_match(db, 35);  // removed keyframes are only masked until saved
+  db.Save();
+  rows_match(db, 33);
+  rows_match(PlaceDatabase::Open(Dir()), 33);
 }
 
 // Two threads query without pause while a writer adds and removes

@@ -258,6 +258,18 @@ PlaceDatabase PlaceDatabase::Open(const std::string& dir, const OpenOptions& opt
                           "-byte descriptors but the keyframes hold ", db.descriptor_bytes(),
                           "-byte ones (corrupted database)");
   }
+  if (WholeImageDims(features) != db.whole_image_dims()) {
+    PLACEDB_THROW_CORRUPT(
+        dir, ": the manifest's feature settings ",
+        features.whole_image.enabled
+            ? "give whole-image rows of " + std::to_string(WholeImageDims(features)) + " values"
+            : std::string("have no whole-image channel"),
+        " but the keyframes ",
+        db.whole_image_dims() > 0
+            ? "hold rows of " + std::to_string(db.whole_image_dims()) + " values"
+            : std::string("have none"),
+        " (corrupted database)");
+  }
   impl->extractor = FeatureExtractor::Create(features);
   const int threads = options.threads == 0 ? ThreadPool::HardwareThreads() : options.threads;
   if (threads > 1) impl->pool = std::make_unique<ThreadPool>(threads);
@@ -289,6 +301,7 @@ const ExtractorOptions& PlaceDatabase::extractor_options() const { return impl_-
 FeatureType PlaceDatabase::feature_type() const { return impl_->feature_type; }
 const KeyframeSubset& PlaceDatabase::subset() const { return impl_->subset; }
 int PlaceDatabase::descriptor_bytes() const { return impl_->descriptor_bytes; }
+int PlaceDatabase::whole_image_dims() const { return WholeImageDims(impl_->build.features); }
 
 std::string PlaceDatabase::manifest_json(int indent) const {
   std::shared_lock<FairSharedMutex> lock(impl_->state);

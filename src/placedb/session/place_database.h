@@ -157,6 +157,10 @@ class PlaceDatabase {
   const KeyframeSubset& subset() const;
   // Bytes per descriptor row (ORB 32; SURF 256 or 512).
   int descriptor_bytes() const;
+  // Values per keyframe of the whole-image channel (feature/whole_image.h;
+  // whole_image_width x whole_image_height), 0 when the database has none
+  // (built with --no-whole-image, or by an earlier placedb).
+  int whole_image_dims() const;
 
   // Snapshots: copies taken under the read lock, valid forever.
   // The manifest as JSON text: every build setting, counts, sizes, creation

@@ -202,7 +202,27 @@ TEST_F(PlaceDatabaseTest, ManifestSettingsMustAgreeWithTheKeyframes) {
   WriteFileAtomic(manifest_path, m.dump());
   EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { PlaceDatabase::Open(copy.string()); },
                                           "settings.resize is not a whole number"));
+  // The whole-image channel: settings that say none (or another size) with
+  // a file that holds it are a corrupt database, and the reverse.
+  EXPECT_EQ(original["whole_image_dims"], 768);
+  m = original;
+  m["settings"]["features"]["whole_image"]["enabled"] = false;
+  WriteFileAtomic(manifest_path, m.dump());
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>(
+      [&] { PlaceDatabase::Open(copy.string()); },
+      "settings have no whole-image channel but the keyframes hold rows of 768 values"));
+  m = original;
+  m["settings"]["features"]["whole_image"]["width"] = 16;
+  WriteFileAtomic(manifest_path, m.dump());
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { PlaceDatabase::Open(copy.string()); },
+                                          "give whole-image rows of 384 values"));
+  m = original;
+  m.erase("whole_image_dims");
+  WriteFileAtomic(manifest_path, m.dump());
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { PlaceDatabase::Open(copy.string()); },
+                                          "disagree on the whole-image channel"));
   WriteFileAtomic(manifest_path, original.dump());
+  EXPECT_EQ(PlaceDatabase::Open(copy.string()).whole_image_dims(), 768);
   EXPECT_NO_THROW(PlaceDatabase::Open(copy.string()));
 }
 

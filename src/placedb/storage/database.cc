@@ -155,8 +155,14 @@ bool AllFinite(const float* values, size_t count) {
   return largest < 0x7f800000u;
 }
 
-Database::Database(FeatureType type, int descriptor_bytes)
-    : feature_type_(type), descriptor_bytes_(descriptor_bytes) {
+Database::Database(FeatureType type, int descriptor_bytes, int whole_image_dims)
+    : feature_type_(type), descriptor_bytes_(descriptor_bytes), whole_image_dims_(whole_image_dims) {
+  if (whole_image_dims != 0 &&
+      (whole_image_dims < static_cast<int>(kf::kMinWholeImageDims) ||
+       whole_image_dims > static_cast<int>(kf::kMaxWholeImageDims))) {
+    PLACEDB_THROW_INVALID("whole-image rows of ", whole_image_dims, " values (0, or [",
+                          kf::kMinWholeImageDims, ", ", kf::kMaxWholeImageDims, "])");
+  }
   const bool ok = type == FeatureType::kOrb ? descriptor_bytes == 32
                                             : (descriptor_bytes == 256 || descriptor_bytes == 512);
   if (!ok) {
@@ -187,7 +193,18 @@ DescriptorBlock Database::Descriptors(size_t index) const {
   return block;
 }
 
+const int8_t* Database::WholeImageData() const {
+  if (whole_image_dims_ == 0) return nullptr;
+  if (!has_features_) PLACEDB_THROW_INVALID(kNoFeatures);
+  return mapped_whole_image_ != nullptr ? mapped_whole_image_ : whole_image_.data();
+}
+
 void Database::CopyOnWrite() {
+  if (mapped_whole_image_ != nullptr) {
+    whole_image_.assign(mapped_whole_image_,
+                        mapped_whole_image_ + keyframes_.size() * whole_image_dims_);
+    mapped_whole_image_ = nullptr;
+  }
   if (!mapping_) return;
   std::vector<cv::KeyPoint> keypoints;
   std::vector<uint8_t> descriptors;
@@ -241,6 +258,23 @@ void Database::AddKeyframe(Keyframe keyframe, const FeatureSet& features) {
                             cv::typeToString(features.descriptors.type()), ")");
     }
   }
+  if (whole_image_dims_ > 0) {
+    const cv::Mat& w = features.whole_image;
+    if (w.empty()) {
+      PLACEDB_THROW_INVALID("keyframe ", keyframe.id,
+                            " has no whole-image descriptor; the database keeps one of ",
+                            whole_image_dims_, " values per keyframe (`whole_image`)");
+    }
+    if (w.type() != CV_8SC1 || w.rows != 1 || w.cols != whole_image_dims_ || !w.isContinuous()) {
+      PLACEDB_THROW_INVALID("keyframe ", keyframe.id, ": its whole-image descriptor is ",
+                            w.rows, " x ", w.cols, " ", cv::typeToString(w.type()),
+                            ", the database keeps 1 x ", whole_image_dims_, " CV_8SC1 rows");
+    }
+    if (std::memchr(w.data, 0x80, static_cast<size_t>(whole_image_dims_)) != nullptr) {
+      PLACEDB_THROW_INVALID("keyframe ", keyframe.id,
+                            ": its whole-image descriptor holds -128 (values are in [-127, 127])");
+    }
+  }
   const std::string bad_keypoints =
       CheckKeypoints(features.keypoints.data(), features.keypoints.size(), keyframe.stored_size);
   if (!bad_keypoints.empty()) PLACEDB_THROW_INVALID("keyframe ", keyframe.id, " ", bad_keypoints);
@@ -275,6 +309,10 @@ void Database::AddKeyframe(Keyframe keyframe, const FeatureSet& features) {
     descriptors_.insert(descriptors_.end(), row, row + descriptor_bytes_);
   }
   num_features_ += static_cast<size_t>(rows);
+  if (whole_image_dims_ > 0) {
+    const int8_t* w = features.whole_image.ptr<int8_t>();
+    whole_image_.insert(whole_image_.end(), w, w + whole_image_dims_);
+  }
   index_of_id_.emplace(keyframe.id, static_cast<int>(keyframes_.size()));
   keyframes_.push_back(std::move(keyframe));
   keyframes_in_file_ = keyframes_.size();
@@ -288,6 +326,7 @@ bool Database::HasRoomFor(size_t keyframes, size_t features) const {
          positive_count_.capacity() - positive_count_.size() >= keyframes &&
          keypoints_.capacity() - keypoints_.size() >= features &&
          descriptors_.capacity() - descriptors_.size() >= features * descriptor_bytes_ &&
+         whole_image_.capacity() - whole_image_.size() >= keyframes * whole_image_dims_ &&
          static_cast<double>(index_of_id_.size() + keyframes) <=
              static_cast<double>(index_of_id_.bucket_count()) * index_of_id_.max_load_factor();
 }
@@ -301,6 +340,7 @@ void Database::Reserve(size_t keyframes, size_t features) {
   index_of_id_.reserve(keyframes);
   keypoints_.reserve(features);
   descriptors_.reserve(features * descriptor_bytes_);
+  whole_image_.reserve(keyframes * whole_image_dims_);
 }
 
 FeatureSet Database::Features(size_t index) const {
@@ -313,6 +353,10 @@ FeatureSet Database::Features(size_t index) const {
   const int type = feature_type_ == FeatureType::kOrb ? CV_8U : CV_32F;
   cv::Mat(block.rows, cols, type, const_cast<uint8_t*>(block.data)).copyTo(f.descriptors);
   if (f.descriptors.empty()) f.descriptors = cv::Mat(0, cols, type);
+  if (whole_image_dims_ > 0) {
+    cv::Mat(1, whole_image_dims_, CV_8S, const_cast<int8_t*>(WholeImage(index)))
+        .copyTo(f.whole_image);
+  }
   return f;
 }
 
@@ -321,7 +365,7 @@ Database Database::Compacted(const std::vector<char>& keep) const {
     PLACEDB_THROW_INVALID("compacting needs one keep flag per keyframe (", keep.size(), " for ",
                           keyframes_.size(), " keyframes)");
   }
-  Database out(feature_type_, descriptor_bytes_);
+  Database out(feature_type_, descriptor_bytes_, whole_image_dims_);
   size_t kept = 0, rows = 0;
   for (size_t i = 0; i < keep.size(); ++i) {
     if (!keep[i]) continue;
@@ -364,13 +408,14 @@ Database::SaveResult Database::Save(const std::string& dir) const {
                           ": it holds a database, which the subset would replace (save a subset "
                           "into a new folder)");
   }
-  const uint32_t num_sections = 5;
-  const size_t table_end = kf::kHeaderBytes + num_sections * kf::kSectionEntryBytes;
-  char header[kf::kHeaderBytes + 5 * kf::kSectionEntryBytes] = {};
+  // The whole-image section only with the channel: files without it are
+  // what earlier placedb versions read.
+  const uint32_t num_sections = whole_image_dims_ > 0 ? 6 : 5;
+  char header[kf::kHeaderBytes + 6 * kf::kSectionEntryBytes] = {};
 
   // Written to a temporary file, committed under its content name.
   AtomicFileWriter out((fs::path(dir) / "keyframes.bin").string());
-  out.Write(header, sizeof(header));  // filled in at the end
+  out.Write(header, kf::kHeaderBytes + num_sections * kf::kSectionEntryBytes);  // filled in last
   out.Align(kf::kSectionAlignment);
   struct Written {
     uint64_t offset, bytes, checksum;
@@ -435,6 +480,15 @@ Database::SaveResult Database::Save(const std::string& dir) const {
       put(h, sizeof(h));
     }
   });
+  Written whole_image{0, 0, 0};
+  if (whole_image_dims_ > 0) {
+    whole_image = section([&](auto put) {
+      char preamble[kf::kWholeImagePreambleBytes] = {};
+      SetField<uint32_t>(preamble, 0, static_cast<uint32_t>(whole_image_dims_));
+      put(preamble, sizeof(preamble));
+      put(WholeImageData(), keyframes_.size() * whole_image_dims_);
+    });
+  }
   const Written keypoints = section([&](auto put) {
     for (size_t i = 0; i < keyframes_.size(); ++i) {
       const Span<cv::KeyPoint> kp = Keypoints(i);
@@ -462,7 +516,8 @@ Database::SaveResult Database::Save(const std::string& dir) const {
                                                 {kf::kStrings, strings},
                                                 {kf::kKeypoints, keypoints},
                                                 {kf::kDescriptors, descriptors},
-                                                {kf::kSourceHashes, source_hashes}};
+                                                {kf::kSourceHashes, source_hashes},
+                                                {kf::kWholeImage, whole_image}};
   for (uint32_t s = 0; s < num_sections; ++s) {
     char* e = header + kf::kHeaderBytes + s * kf::kSectionEntryBytes;
     SetField<uint32_t>(e, 0, table[s].first);
@@ -472,9 +527,7 @@ Database::SaveResult Database::Save(const std::string& dir) const {
   }
   const uint64_t checksum = HeaderChecksum(header, num_sections);
   SetField<uint64_t>(header, kf::kChecksumOffset, checksum);
-  static_assert(sizeof(header) == kf::kHeaderBytes + 5 * kf::kSectionEntryBytes, "header size");
-  (void)table_end;
-  out.WriteAt(0, header, sizeof(header));
+  out.WriteAt(0, header, kf::kHeaderBytes + num_sections * kf::kSectionEntryBytes);
 
   // The new generation under its own name, then the manifest that names it,
   // then the old generation goes: a crash leaves one complete pair.
@@ -488,6 +541,11 @@ Database::SaveResult Database::Save(const std::string& dir) const {
   manifest["format_version"] = kDatabaseFormatVersion;
   manifest["feature_type"] = FeatureTypeName(feature_type_);
   manifest["descriptor_bytes"] = descriptor_bytes_;
+  if (whole_image_dims_ > 0) {
+    manifest["whole_image_dims"] = whole_image_dims_;
+  } else {
+    manifest.erase("whole_image_dims");
+  }
   manifest["counts"]["keyframes"] = keyframes_.size();
   manifest["counts"]["features"] = num_features_;
   manifest["files"] = {{"keyframes", result.keyframes_file},
@@ -581,7 +639,7 @@ void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const 
     uint64_t offset = 0, bytes = 0, checksum = 0;
     bool present = false;
   };
-  Section sections[6];
+  Section sections[kf::kWholeImage + 1];
   std::vector<std::pair<uint64_t, uint64_t>> extents;
   for (uint32_t s = 0; s < num_sections; ++s) {
     const char* e = b + kf::kHeaderBytes + s * kf::kSectionEntryBytes;
@@ -592,7 +650,7 @@ void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const 
     if (offset < table_end || offset > size || bytes > size - offset)
       fail("section ", s, " (offset ", offset, ", ", bytes, " bytes) lies outside the file");
     extents.emplace_back(offset, bytes);
-    if (kind >= kf::kKeyframes && kind <= kf::kSourceHashes) {
+    if (kind >= kf::kKeyframes && kind <= kf::kWholeImage) {
       if (sections[kind].present) fail("section kind ", kind, " appears twice");
       sections[kind] = {offset, bytes, Field<uint64_t>(e, 24), true};
     }
@@ -618,6 +676,25 @@ void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const 
   const Section& source_hashes = sections[kf::kSourceHashes];
   if (source_hashes.present && source_hashes.bytes != num_keyframes * 8)
     fail("the source hash section's size does not match ", num_keyframes, " keyframes");
+  // Optional: the whole-image channel, its preamble and K rows.
+  const Section& whole_image = sections[kf::kWholeImage];
+  uint32_t whole_image_dims = 0;
+  if (whole_image.present) {
+    if (whole_image.bytes < kf::kWholeImagePreambleBytes)
+      fail("the whole-image section is shorter than its preamble");
+    const char* preamble = b + whole_image.offset;
+    whole_image_dims = Field<uint32_t>(preamble, 0);
+    if (whole_image_dims < kf::kMinWholeImageDims || whole_image_dims > kf::kMaxWholeImageDims)
+      fail("whole-image rows of ", whole_image_dims, " values (expected [",
+           kf::kMinWholeImageDims, ", ", kf::kMaxWholeImageDims, "])");
+    for (size_t at = 4; at < kf::kWholeImagePreambleBytes; ++at) {
+      if (preamble[at] != 0) fail("the whole-image section's reserved bytes are not 0");
+    }
+    // num_keyframes <= size / 152: the product stays far below 2^64.
+    if (whole_image.bytes - kf::kWholeImagePreambleBytes != num_keyframes * whole_image_dims)
+      fail("the whole-image section's size does not match ", num_keyframes, " keyframes of ",
+           whole_image_dims, " values");
+  }
   const bool with_features = options.contents == LoadContents::kAll;
   auto verify = [&](const Section& s, const char* what) {
     if (Checksum64(b + s.offset, s.bytes) != s.checksum)
@@ -629,6 +706,12 @@ void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const 
   verify(keyframes, "keyframe section");
   verify(strings, "string section");
   if (source_hashes.present) verify(source_hashes, "source hash section");
+  const char* whole_image_rows = b + whole_image.offset + kf::kWholeImagePreambleBytes;
+  if (whole_image.present && with_features) {
+    verify(whole_image, "whole-image section");
+    if (std::memchr(whole_image_rows, 0x80, whole_image.bytes - kf::kWholeImagePreambleBytes))
+      fail("the whole-image section holds -128 (values are in [-127, 127])");
+  }
 
   // Keyframe records: every value checked; ranges back to back.
   std::vector<Keyframe> all(num_keyframes);
@@ -768,6 +851,20 @@ void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const 
     if (!bad_keypoints.empty()) fail(bad_keypoints);
     if (!bad_descriptors.empty()) fail(bad_descriptors);
   }
+  whole_image_dims_ = static_cast<int>(whole_image_dims);
+  if (whole_image.present && with_features) {
+    bool in_place = keep.size() == num_keyframes;
+    for (size_t j = 0; in_place && j < keep.size(); ++j) in_place = keep[j] == j;
+    if (in_place) {
+      mapped_whole_image_ = reinterpret_cast<const int8_t*>(whole_image_rows);
+    } else {
+      whole_image_.reserve(keep.size() * whole_image_dims);
+      for (const size_t i : keep) {
+        const auto* row = reinterpret_cast<const int8_t*>(whole_image_rows) + i * whole_image_dims;
+        whole_image_.insert(whole_image_.end(), row, row + whole_image_dims);
+      }
+    }
+  }
   keyframes_.reserve(keep.size());
   for (const size_t i : keep) {
     row_offset_.push_back(offsets[i]);
@@ -849,6 +946,9 @@ Database Database::Load(const std::string& dir, const LoadOptions& options) {
     const std::string expected_checksum = files.String("keyframes_checksum");
     const std::string feature_type = m.String("feature_type");
     const int64_t descriptor_bytes = m.Integer("descriptor_bytes", 0, INT32_MAX);
+    // Absent in manifests of databases without the whole-image channel.
+    const int64_t whole_image_dims =
+        manifest.contains("whole_image_dims") ? m.Integer("whole_image_dims", 0, INT32_MAX) : 0;
     const JsonReader counts = m.Child("counts");
     const int64_t keyframes = counts.Integer("keyframes", 0, INT64_MAX);
     const int64_t features = counts.Integer("features", 0, INT64_MAX);
@@ -874,6 +974,7 @@ Database Database::Load(const std::string& dir, const LoadOptions& options) {
     if (checksum != expected_checksum) disagree("the file's checksum");
     if (feature_type != FeatureTypeName(db.feature_type_)) disagree("the feature type");
     if (descriptor_bytes != db.descriptor_bytes_) disagree("the descriptor width");
+    if (whole_image_dims != db.whole_image_dims_) disagree("the whole-image channel");
     if (static_cast<uint64_t>(keyframes) != db.keyframes_in_file_)
       disagree("the number of keyframes");
     if (static_cast<uint64_t>(features) != Field<uint64_t>(file->data(), 40))

@@ -89,8 +89,9 @@ class Database {
  public:
   Database() = default;
   // An empty database for descriptors of `type`, `descriptor_bytes` per row
-  // (32 for ORB; 256 or 512 for SURF).
-  Database(FeatureType type, int descriptor_bytes);
+  // (32 for ORB; 256 or 512 for SURF), with a whole-image channel of
+  // `whole_image_dims` values per keyframe (0: none; else in [16, 4096]).
+  Database(FeatureType type, int descriptor_bytes, int whole_image_dims = 0);
 
   FeatureType feature_type() const { return feature_type_; }
   int descriptor_bytes() const { return descriptor_bytes_; }
@@ -119,12 +120,28 @@ class Database {
   DescriptorBlock Descriptors(size_t index) const;
   size_t FeatureCount(size_t index) const { return feature_count_[index]; }
 
+  // The whole-image channel (feature/whole_image.h): one row of
+  // whole_image_dims() int8 values per keyframe, 0 when the database has
+  // none (built without it, or by an earlier placedb). WholeImageData() is
+  // size() rows back to back in keyframe index order (nullptr without a
+  // channel), valid while the database is alive and unchanged; WholeImage(i)
+  // is keyframe i's row. A keyframe table (has_features() false) has no rows
+  // to give (InvalidArgument), but says its dims.
+  int whole_image_dims() const { return whole_image_dims_; }
+  const int8_t* WholeImageData() const;
+  const int8_t* WholeImage(size_t index) const {
+    return WholeImageData() + index * static_cast<size_t>(whole_image_dims_);
+  }
+
   // Appends a keyframe with its features. InvalidArgument when the
   // keyframe is impossible (CheckKeyframe), its id is taken, or the features'
   // type, width or count disagree with the database, or a keypoint is not
   // finite or lies outside the stored image (CheckKeypoints), or a SURF
-  // descriptor value is not finite. SURF features are reordered, positive
-  // Laplacian first.
+  // descriptor value is not finite, or (a database with a whole-image
+  // channel) features.whole_image is not a continuous 1 x whole_image_dims()
+  // CV_8S row of values in [-127, 127]. A database without the channel
+  // ignores a row given. SURF features are reordered, positive Laplacian
+  // first.
   void AddKeyframe(Keyframe keyframe, const FeatureSet& features);
   // Room for keyframes and feature rows to be appended without moving any
   // storage (a database used in place from its file has none: the first
@@ -136,7 +153,8 @@ class Database {
   // The keyframes whose `keep` flag is set (keep.size() == size()), in the
   // same order, with their features and this database's info.
   Database Compacted(const std::vector<char>& keep) const;
-  // The features of keyframe `index` as a FeatureSet (a copy).
+  // The features of keyframe `index` as a FeatureSet (a copy), with its
+  // whole-image row when the database has the channel.
   FeatureSet Features(size_t index) const;
 
   // Everything about how the database was built, free-form JSON kept in the
@@ -158,7 +176,7 @@ class Database {
   // Opens a database directory (or only a subset of it, or only its keyframe
   // table). The manifest and the keyframe file it names are read relative to
   // one open directory and checked against each other (name, size, checksum,
-  // counts, feature type and width), so a rebuild between the two reads
+  // counts, feature type and width, whole-image channel), so a rebuild between the two reads
   // cannot mix generations; a rebuild that replaces the file under a reader
   // makes it read the new generation (a few retries). Every header field,
   // offset, count, size and checksum of the file is checked before use.
@@ -198,6 +216,7 @@ class Database {
 
   FeatureType feature_type_ = FeatureType::kOrb;
   int descriptor_bytes_ = 32;
+  int whole_image_dims_ = 0;
   std::vector<Keyframe> keyframes_;
   std::unordered_map<int32_t, int> index_of_id_;  // keyframe id -> index
   // Keyframe i owns feature rows [row_offset_[i], row_offset_[i] +
@@ -210,11 +229,14 @@ class Database {
   // Owned storage (built or grown databases).
   std::vector<cv::KeyPoint> keypoints_;
   std::vector<uint8_t> descriptors_;
+  std::vector<int8_t> whole_image_;  // size() * whole_image_dims_
   // A loaded database uses its keypoints and descriptors in place in the
   // memory-mapped file; the first AddKeyframe copies them (copy on write).
   std::shared_ptr<const MappedFile> mapping_;
   const cv::KeyPoint* mapped_keypoints_ = nullptr;
   const uint8_t* mapped_descriptors_ = nullptr;
+  // The whole file's rows in place (a subset's are copied into whole_image_).
+  const int8_t* mapped_whole_image_ = nullptr;
   bool has_features_ = true;
   nlohmann::json info_ = nlohmann::json::object();
   KeyframeSubset subset_;

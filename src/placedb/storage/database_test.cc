@@ -21,6 +21,7 @@
 #include <thread>
 
 #include "placedb/feature/extractor.h"
+#include "placedb/feature/whole_image.h"
 #include "placedb/storage/keyframe_file.h"
 #include "placedb/query/query.h"
 #include "placedb/match/ratio_matcher.h"
@@ -44,11 +45,12 @@ void WriteBytes(const std::string& path, const std::string& bytes) {
 
 // A database of `n` real images (ids 1..n): each keyframe a crop of the
 // image resized to half size, features extracted on the stored image. Odd
-// ids get a pose when `with_poses`.
+// ids get a pose when `with_poses`. With the options' whole-image channel
+// (the default: 768 values per keyframe).
 Database MakeDatabase(const ExtractorOptions& options, int n, bool with_poses) {
   const auto extractor = FeatureExtractor::Create(options);
   const int bytes = options.type == FeatureType::kOrb ? 32 : (options.surf.extended ? 128 : 64) * 4;
-  Database db(options.type, bytes);
+  Database db(options.type, bytes, WholeImageDims(options));
   for (int i = 1; i <= n; ++i) {
     const cv::Mat image = cv::imread(RtabmapImage(i));
     EXPECT_FALSE(image.empty());
@@ -115,6 +117,13 @@ void ExpectDatabasesEqual(const Database& a, const Database& b) {
       EXPECT_EQ(0, std::memcmp(da.data, dbk.data, static_cast<size_t>(da.rows) * da.row_bytes));
     }
     EXPECT_EQ(da.positive_rows, dbk.positive_rows);
+  }
+  ASSERT_EQ(a.whole_image_dims(), b.whole_image_dims());
+  if (a.whole_image_dims() > 0 && a.size() > 0) {
+    EXPECT_EQ(0, std::memcmp(a.WholeImageData(), b.WholeImageData(),
+                             a.size() * static_cast<size_t>(a.whole_image_dims())));
+  } else if (a.whole_image_dims() == 0) {
+    EXPECT_EQ(b.WholeImageData(), nullptr);
   }
 }
 
@@ -211,6 +220,7 @@ TEST(DatabaseTest, LoadedDatabaseGrowsAndOutlivesItsFiles) {
   extra.keypoints = four.Keypoints(3).ToVector();
   const DescriptorBlock block = four.Descriptors(3);
   extra.descriptors = cv::Mat(block.rows, 32, CV_8U, const_cast<uint8_t*>(block.data)).clone();
+  extra.whole_image = four.Features(3).whole_image;
   loaded.AddKeyframe(four.keyframe(3), extra);
   loaded.info() = four.info();
   ExpectDatabasesEqual(four, loaded);
@@ -265,6 +275,11 @@ void ExpectSubsetOf(const Database& whole, const Database& part) {
       EXPECT_EQ(0, std::memcmp(a.data, b.data, static_cast<size_t>(a.rows) * a.row_bytes));
     }
     EXPECT_EQ(a.positive_rows, b.positive_rows);
+    ASSERT_EQ(whole.whole_image_dims(), part.whole_image_dims());
+    if (whole.whole_image_dims() > 0) {
+      EXPECT_EQ(0, std::memcmp(whole.WholeImage(w), part.WholeImage(i),
+                               static_cast<size_t>(whole.whole_image_dims())));
+    }
   }
 }
 
@@ -331,6 +346,7 @@ TEST(DatabaseTest, SubsetsOpenOnlyTheirKeyframes) {
         options.type == FeatureType::kOrb
             ? cv::Mat(block.rows, 32, CV_8U, const_cast<uint8_t*>(block.data)).clone()
             : cv::Mat(block.rows, 64, CV_32F, const_cast<uint8_t*>(block.data)).clone();
+    extra.whole_image = whole.Features(3).whole_image;
     copy.AddKeyframe(whole.keyframe(3), extra);  // copy on write of a mapped subset
     ASSERT_EQ(copy.size(), 3u);
     ExpectSubsetOf(whole, copy);
@@ -460,7 +476,8 @@ TEST_F(DatabaseFileTest, SourceHashesAreOptional) {
   std::memcpy(&kind, &bytes_[64 + 4 * 32], 4);
   ASSERT_EQ(kind, keyframe_file::kSourceHashes);
   std::string old = bytes_;
-  Put<uint32_t>(&old, 24, 4);
+  Put<uint32_t>(&old, 24, 4);  // the whole-image section (the sixth) goes too
+  manifest_.erase("whole_image_dims");
   WriteResealed(old);
   const Database earlier = Database::Load(Dir());
   ASSERT_EQ(earlier.size(), 3u);
@@ -474,6 +491,115 @@ TEST_F(DatabaseFileTest, SourceHashesAreOptional) {
   Put<uint64_t>(&short_section, 64 + 4 * 32 + 16, 16);
   WriteResealed(short_section);
   EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), "the source hash section's size does not match"));
+}
+
+// The whole-image section is optional too: a file without it (an earlier
+// placedb's, or built with --no-whole-image) opens with no channel; the
+// manifest's whole_image_dims must agree with the file; a damaged section
+// (size, preamble, values) is refused.
+TEST_F(DatabaseFileTest, WholeImageSectionIsOptionalAndChecked) {
+  const Database saved = Database::Load(Dir());
+  ASSERT_EQ(saved.whole_image_dims(), 768);
+  EXPECT_EQ(manifest_["whole_image_dims"], 768);
+  for (size_t i = 0; i < 3; ++i)
+    EXPECT_EQ(0, std::memcmp(saved.WholeImage(i), db_->WholeImage(i), 768)) << i;
+  uint32_t kind;
+  std::memcpy(&kind, &bytes_[64 + 5 * 32], 4);
+  ASSERT_EQ(kind, keyframe_file::kWholeImage);
+  std::string without = bytes_;
+  Put<uint32_t>(&without, 24, 5);  // drops the sixth entry
+  WriteResealed(without);
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), "disagree on the whole-image channel"));
+  manifest_.erase("whole_image_dims");
+  WriteResealed(without);
+  const Database earlier = Database::Load(Dir());
+  EXPECT_EQ(earlier.whole_image_dims(), 0);
+  EXPECT_EQ(earlier.WholeImageData(), nullptr);
+  EXPECT_EQ(earlier.keyframe(0).source_hash, saved.keyframe(0).source_hash);
+  EXPECT_TRUE(earlier.Features(0).whole_image.empty());
+  // The section present, the manifest without the key: they disagree too.
+  WriteResealed(bytes_);
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), "disagree on the whole-image channel"));
+  manifest_["whole_image_dims"] = 768;
+  const size_t at = SectionOffset(keyframe_file::kWholeImage);
+  for (const auto& [what, edit] :
+       std::vector<std::pair<std::string, std::function<void(std::string*)>>>{
+           {"whole-image rows of 0 values", [&](std::string* b) { Put<uint32_t>(b, at, 0); }},
+           {"whole-image rows of 5000 values",
+            [&](std::string* b) { Put<uint32_t>(b, at, 5000); }},
+           {"size does not match 3 keyframes of 769",
+            [&](std::string* b) { Put<uint32_t>(b, at, 769); }},
+           {"reserved bytes are not 0", [&](std::string* b) { (*b)[at + 63] = 1; }},
+           {"holds -128", [&](std::string* b) { (*b)[at + 64 + 700] = static_cast<char>(0x80); }},
+           {"shorter than its preamble",
+            [&](std::string* b) { Put<uint64_t>(b, 64 + 5 * 32 + 16, 63); }},
+       }) {
+    std::string bad = bytes_;
+    edit(&bad);
+    WriteResealed(bad);
+    EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), what)) << what;
+  }
+  std::string flipped = bytes_;
+  flipped[at + 100] ^= 0x10;
+  WriteBytes(bin_, flipped);
+  WriteManifest(manifest_);
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), "whole-image section checksum mismatch"));
+  // A keyframe table says the dims but gives no rows.
+  LoadOptions table;
+  table.contents = LoadContents::kKeyframeTable;
+  const Database t = Database::Load(Dir(), table);
+  EXPECT_EQ(t.whole_image_dims(), 768);
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { t.WholeImageData(); }, "keyframe table"));
+}
+
+// AddKeyframe holds a database with the channel to rows of its size and
+// values; one without the channel ignores rows. Compacted and a grown copy
+// keep every row with its keyframe.
+TEST(DatabaseRowsTest, WholeImageRowsAreCheckedAndFollowTheirKeyframes) {
+  const Database built = MakeDatabase(ExtractorOptions(), 4, false);
+  ASSERT_EQ(built.whole_image_dims(), 768);
+  Database db(FeatureType::kOrb, 32, 768);
+  EXPECT_THROW(Database(FeatureType::kOrb, 32, 8), InvalidArgument);
+  EXPECT_THROW(Database(FeatureType::kOrb, 32, 5000), InvalidArgument);
+  const Keyframe k = built.keyframe(0);
+  FeatureSet f = built.Features(0);
+  ASSERT_EQ(f.whole_image.cols, 768);
+  FeatureSet bad = f;
+  bad.whole_image.release();
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.AddKeyframe(k, bad); }, "no whole-image"));
+  bad.whole_image = f.whole_image.colRange(0, 767).clone();
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.AddKeyframe(k, bad); }, "1 x 767"));
+  f.whole_image.convertTo(bad.whole_image, CV_8U);
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.AddKeyframe(k, bad); }, "CV_8SC1"));
+  bad.whole_image = f.whole_image.clone();
+  bad.whole_image.at<int8_t>(5) = -128;
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.AddKeyframe(k, bad); }, "-128"));
+  EXPECT_EQ(db.size(), 0u);
+  for (size_t i = 0; i < built.size(); ++i) db.AddKeyframe(built.keyframe(i), built.Features(i));
+  for (size_t i = 0; i < db.size(); ++i)
+    EXPECT_EQ(0, std::memcmp(db.WholeImage(i), built.WholeImage(i), 768)) << i;
+  const Database kept = db.Compacted({1, 0, 0, 1});
+  ASSERT_EQ(kept.size(), 2u);
+  EXPECT_EQ(0, std::memcmp(kept.WholeImage(0), built.WholeImage(0), 768));
+  EXPECT_EQ(0, std::memcmp(kept.WholeImage(1), built.WholeImage(3), 768));
+  Database grown = kept;
+  grown.Reserve(16, 4096);
+  EXPECT_TRUE(grown.HasRoomFor(1, 500));
+  grown.AddKeyframe(built.keyframe(1), built.Features(1));
+  EXPECT_EQ(0, std::memcmp(grown.WholeImage(2), built.WholeImage(1), 768));
+  // A loaded database grows by copy on write, rows included.
+  TempDir tmp;
+  kept.Save(tmp.Path());
+  Database loaded = Database::Load(tmp.Path());
+  loaded.AddKeyframe(built.keyframe(2), built.Features(2));
+  EXPECT_EQ(0, std::memcmp(loaded.WholeImage(0), built.WholeImage(0), 768));
+  EXPECT_EQ(0, std::memcmp(loaded.WholeImage(2), built.WholeImage(2), 768));
+  // Without a channel, rows given are ignored.
+  Database plain(FeatureType::kOrb, 32);
+  plain.AddKeyframe(built.keyframe(0), built.Features(0));
+  EXPECT_EQ(plain.whole_image_dims(), 0);
+  EXPECT_EQ(plain.WholeImageData(), nullptr);
+  EXPECT_TRUE(plain.Features(0).whole_image.empty());
 }
 
 TEST_F(DatabaseFileTest, KeyframeTableSkipsTheFeatures) {
@@ -708,6 +834,14 @@ TEST_F(DatabaseFileTest, MutatedFilesNeverCrash) {
         MatchDescriptors(q, db.Descriptors(i), MatchOptions());
         for (const cv::KeyPoint& kp : db.Keypoints(i)) ASSERT_TRUE(std::isfinite(kp.pt.x));
       }
+      if (db.whole_image_dims() > 0) {
+        const int dims = db.whole_image_dims();
+        const std::vector<int8_t> q_row(static_cast<size_t>(dims), 5);
+        std::vector<float> similarity(db.size());
+        WholeImageSimilarities(q_row.data(), db.WholeImageData(), db.size(), dims,
+                               similarity.data());
+        for (const float v : similarity) ASSERT_TRUE(v >= -1.0f && v <= 1.0f);
+      }
       ++loaded;
     } catch (const CorruptDatabase&) {
       ++rejected;
@@ -731,13 +865,16 @@ TEST_F(DatabaseFileTest, MutatedFilesNeverCrash) {
                                   ~uint64_t{0} - 1,
                                   ~uint64_t{0}};
   constexpr int kFiles = 12000;
+  uint32_t kSections;
+  std::memcpy(&kSections, &bytes_[24], 4);
+  ASSERT_EQ(kSections, 6u);  // the fixture has every section, the whole image's too
   for (int i = 0; i < kFiles; ++i) {
     std::string bad = bytes_;
     const int kind = static_cast<int>(rng() % 6);
-    // Aim at the fields: the header and section table, the keyframe records
-    // and strings, the keypoints; now and then anywhere (descriptor bits are
-    // data, any value is possible).
-    const size_t table_end = 64 + 4 * 32;
+    // Aim at the fields: the header and section table, the keyframe records,
+    // strings, source hashes and whole-image section, the keypoints; now
+    // and then anywhere (descriptor bits are data, any value is possible).
+    const size_t table_end = 64 + kSections * 32;
     const size_t records_end = SectionOffset(keyframe_file::kKeypoints);
     const size_t features_at = SectionOffset(keyframe_file::kDescriptors);
     const int region = static_cast<int>(rng() % 10);
@@ -767,7 +904,7 @@ TEST_F(DatabaseFileTest, MutatedFilesNeverCrash) {
         bad.append(1 + rng() % 200, static_cast<char>(rng()));
       }
     } else {  // a header or table field
-      const size_t at = (rng() % ((64 + 4 * 32) / 4)) * 4;
+      const size_t at = (rng() % ((64 + kSections * 32) / 4)) * 4;
       Put<uint32_t>(&bad, at, static_cast<uint32_t>(rng()));
     }
     WriteResealed(bad, /*fix_size=*/rng() % 8 != 0);
@@ -787,6 +924,7 @@ TEST_F(DatabaseFileTest, MutatedFilesNeverCrash) {
                                                  {"format_version"},
                                                  {"feature_type"},
                                                  {"descriptor_bytes"},
+                                                 {"whole_image_dims"},
                                                  {"counts"},
                                                  {"counts", "keyframes"},
                                                  {"counts", "features"},

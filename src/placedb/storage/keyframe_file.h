@@ -22,6 +22,14 @@
 //                    lack it, and their keyframes read with hash 0 (a
 //                    reader of that time skips it as an unknown kind, so
 //                    the format version stays 2).
+//     6 whole image  the whole-image channel (feature/whole_image.h): a
+//                    64-byte preamble (u32 values per row D in [16, 4096],
+//                    then 60 bytes of 0), then K rows of D int8 values in
+//                    [-127, 127], keyframe i's at preamble end + i D.
+//                    Optional, like section 5: files without it read with
+//                    no whole-image channel (Database::whole_image_dims()
+//                    0), earlier readers skip it, and the manifest's
+//                    `whole_image_dims` (absent: 0) must agree with it.
 //   Unknown section kinds are skipped (their checksums are not verified).
 //
 // Keyframe i owns features [feature_offset, feature_offset + feature_count),
@@ -58,7 +66,12 @@ enum SectionKind : uint32_t {
   kKeypoints = 3,
   kDescriptors = 4,
   kSourceHashes = 5,  // optional
+  kWholeImage = 6,    // optional
 };
+// The whole-image section: its preamble, and the row sizes it may hold.
+constexpr size_t kWholeImagePreambleBytes = 64;
+constexpr uint32_t kMinWholeImageDims = 16;    // 4 x 4
+constexpr uint32_t kMaxWholeImageDims = 4096;  // 64 x 64
 
 // Recomputes the checksums of a keyframe file image, as far as its section
 // table can be read: every readable section's checksum, then the header
