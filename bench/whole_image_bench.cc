@@ -45,7 +45,8 @@ void BM_WholeImageSimilarities(benchmark::State& state) {
 // 10 000 rows (7.7 MB: from the last-level cache or memory), and 100 rows
 // (77 KB, in the core's caches: the kernel's arithmetic alone).
 BENCHMARK(BM_WholeImageSimilarities)
-    ->ArgsProduct({{0, kNumWholeImageKernels - 1}, {static_cast<int64_t>(kRows), 100}})
+    ->ArgsProduct({benchmark::CreateDenseRange(0, kNumWholeImageKernels - 1, 1),
+                   {static_cast<int64_t>(kRows), 100}})
     ->Unit(benchmark::kMicrosecond);
 
 }  // namespace

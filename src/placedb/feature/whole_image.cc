@@ -83,19 +83,27 @@ void SimilaritiesReference(const int8_t* query, const int8_t* rows, size_t count
 }
 
 #if PLACEDB_X86
-__attribute__((target("avx2"))) inline int32_t HorizontalSum(__m256i v) {
+#define PLACEDB_AVX2 __attribute__((target("avx2")))
+
+PLACEDB_AVX2 inline int32_t HorizontalSum(__m256i v) {
   const __m128i s = _mm_add_epi32(_mm256_castsi256_si128(v), _mm256_extracti128_si256(v, 1));
   const __m128i t = _mm_add_epi32(s, _mm_shuffle_epi32(s, 0x4e));
   return _mm_cvtsi128_si32(_mm_add_epi32(t, _mm_shuffle_epi32(t, 0xb1)));
 }
 
-// 32 values at a time: maddubs(|q|, sign(r, q)) sums pairs of q r into
+// The sums of four rows' accumulators (8 int32 each), as 4 int32.
+PLACEDB_AVX2 inline __m128i HorizontalSum4(__m256i a, __m256i b, __m256i c, __m256i d) {
+  const __m256i t = _mm256_hadd_epi32(_mm256_hadd_epi32(a, b), _mm256_hadd_epi32(c, d));
+  return _mm_add_epi32(_mm256_castsi256_si128(t), _mm256_extracti128_si256(t, 1));
+}
+
+// 32 values of one row: maddubs(|q|, sign(r, q)) sums pairs of q r into
 // int16 (at most 2 * 127 * 127: no saturation for values in [-127, 127]),
-// madd with ones widens them to int32; the row's squares the same way with
-// |r|. Two rows per step share the query's loads; the tail (dims % 32) is
-// scalar.
-__attribute__((target("avx2"))) inline void Block(__m256i qa, __m256i q, const int8_t* r,
-                                                  __m256i ones, __m256i* dot, __m256i* rr) {
+// madd with ones widens them to int32; the row's squares the same way
+// with |r|.
+PLACEDB_AVX2 inline void BlockAvx2(__m256i qa, __m256i q, const int8_t* r, __m256i* dot,
+                                   __m256i* rr) {
+  const __m256i ones = _mm256_set1_epi16(1);
   const __m256i v = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(r));
   const __m256i av = _mm256_abs_epi8(v);
   const __m256i qv = _mm256_maddubs_epi16(qa, _mm256_sign_epi8(v, q));
@@ -104,55 +112,108 @@ __attribute__((target("avx2"))) inline void Block(__m256i qa, __m256i q, const i
   *rr = _mm256_add_epi32(*rr, _mm256_madd_epi16(vv, ones));
 }
 
-__attribute__((target("avx2"))) void SimilaritiesAvx2(const int8_t* query, const int8_t* rows,
-                                                      size_t count, int dims, float* out) {
-  int64_t qq = 0;
-  for (int d = 0; d < dims; ++d) qq += int32_t{query[d]} * query[d];
-  const int blocks = dims / 32;
-  const __m256i ones = _mm256_set1_epi16(1);
-  const size_t stride = static_cast<size_t>(dims);
-  auto tail = [&](const int8_t* r, int32_t* d32, int32_t* r32) {
-    for (int d = 32 * blocks; d < dims; ++d) {
-      *d32 += int32_t{query[d]} * r[d];
-      *r32 += int32_t{r[d]} * r[d];
-    }
-  };
-  size_t i = 0;
-  for (; i + 2 <= count; i += 2) {
-    const int8_t* r0 = rows + i * stride;
-    const int8_t* r1 = r0 + stride;
-    __m256i dot0 = _mm256_setzero_si256(), rr0 = _mm256_setzero_si256();
-    __m256i dot1 = _mm256_setzero_si256(), rr1 = _mm256_setzero_si256();
-    for (int b = 0; b < blocks; ++b) {
-      const __m256i q = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(query + 32 * b));
-      const __m256i qa = _mm256_abs_epi8(q);
-      Block(qa, q, r0 + 32 * b, ones, &dot0, &rr0);
-      Block(qa, q, r1 + 32 * b, ones, &dot1, &rr1);
-    }
-    int32_t d0 = HorizontalSum(dot0), n0 = HorizontalSum(rr0);
-    int32_t d1 = HorizontalSum(dot1), n1 = HorizontalSum(rr1);
-    tail(r0, &d0, &n0);
-    tail(r1, &d1, &n1);
-    out[i] = Cosine(d0, qq, n0);
-    out[i + 1] = Cosine(d1, qq, n1);
-  }
-  for (; i < count; ++i) {
-    const int8_t* r = rows + i * stride;
-    __m256i dot = _mm256_setzero_si256(), rr = _mm256_setzero_si256();
-    for (int b = 0; b < blocks; ++b) {
-      const __m256i q = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(query + 32 * b));
-      Block(_mm256_abs_epi8(q), q, r + 32 * b, ones, &dot, &rr);
-    }
-    int32_t d32 = HorizontalSum(dot), r32 = HorizontalSum(rr);
-    tail(r, &d32, &r32);
-    out[i] = Cosine(d32, qq, r32);
-  }
-  _mm256_zeroupper();
+// The same with AVX-VNNI: vpdpbusd multiplies unsigned by signed bytes and
+// adds each four products into an int32 lane, in one instruction.
+#define PLACEDB_AVXVNNI __attribute__((target("avx2,avxvnni")))
+PLACEDB_AVXVNNI inline void BlockAvxVnni(__m256i qa, __m256i q, const int8_t* r, __m256i* dot,
+                                         __m256i* rr) {
+  const __m256i v = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(r));
+  const __m256i av = _mm256_abs_epi8(v);
+  *dot = _mm256_dpbusd_avx_epi32(*dot, qa, _mm256_sign_epi8(v, q));
+  *rr = _mm256_dpbusd_avx_epi32(*rr, av, av);
 }
+
+// Four cosines at once, each computed as Cosine computes it (the same
+// double operations, so the same floats).
+PLACEDB_AVX2 inline void Cosine4(__m128i dot, int64_t qq, __m128i rr, float* out) {
+  const __m256d d = _mm256_cvtepi32_pd(dot), r = _mm256_cvtepi32_pd(rr);
+  const __m256d c =
+      _mm256_div_pd(d, _mm256_sqrt_pd(_mm256_mul_pd(_mm256_set1_pd(static_cast<double>(qq)), r)));
+  const __m256d clamped =
+      _mm256_min_pd(_mm256_max_pd(c, _mm256_set1_pd(-1.0)), _mm256_set1_pd(1.0));
+  const __m256d none = qq == 0 ? _mm256_castsi256_pd(_mm256_set1_epi64x(-1))
+                               : _mm256_cmp_pd(r, _mm256_setzero_pd(), _CMP_EQ_OQ);
+  _mm_storeu_ps(out, _mm256_cvtpd_ps(_mm256_andnot_pd(none, clamped)));
+}
+
+// The rows' pass, for a Block of 32 values: four rows a step (they share
+// the query's loads, their sums and cosines are taken together, and the
+// group after next is prefetched), the rest one by one; the tail (dims %
+// 32) is scalar. Stamped out once per target (a function's target cannot
+// follow a template parameter).
+#define PLACEDB_WHOLE_IMAGE_PASS(TARGET, NAME, BLOCK)                                          \
+  TARGET void NAME(const int8_t* query, const int8_t* rows, size_t count, int dims,           \
+                   float* out) {                                                              \
+    int64_t qq = 0;                                                                           \
+    for (int d = 0; d < dims; ++d) qq += int32_t{query[d]} * query[d];                        \
+    const int blocks = dims / 32;                                                             \
+    const size_t stride = static_cast<size_t>(dims);                                          \
+    const auto tail = [&](const int8_t* r, int32_t* dot, int32_t* rr) {                       \
+      for (int d = 32 * blocks; d < dims; ++d) {                                              \
+        *dot += int32_t{query[d]} * r[d];                                                     \
+        *rr += int32_t{r[d]} * r[d];                                                          \
+      }                                                                                       \
+    };                                                                                        \
+    size_t i = 0;                                                                             \
+    for (; i + 4 <= count; i += 4) {                                                          \
+      const int8_t* r = rows + i * stride;                                                    \
+      const char* next = reinterpret_cast<const char*>(r + 4 * stride);                       \
+      __m256i d0 = _mm256_setzero_si256(), d1 = d0, d2 = d0, d3 = d0;                         \
+      __m256i n0 = d0, n1 = d0, n2 = d0, n3 = d0;                                             \
+      for (int b = 0; b < blocks; ++b) {                                                      \
+        if ((b & 1) == 0 && i + 8 <= count) {                                                 \
+          for (size_t j = 0; j < 4; ++j) _mm_prefetch(next + j * stride + 32 * b, _MM_HINT_T0); \
+        }                                                                                     \
+        const __m256i q = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(query + 32 * b)); \
+        const __m256i qa = _mm256_abs_epi8(q);                                                \
+        BLOCK(qa, q, r + 32 * b, &d0, &n0);                                                   \
+        BLOCK(qa, q, r + stride + 32 * b, &d1, &n1);                                          \
+        BLOCK(qa, q, r + 2 * stride + 32 * b, &d2, &n2);                                      \
+        BLOCK(qa, q, r + 3 * stride + 32 * b, &d3, &n3);                                      \
+      }                                                                                       \
+      __m128i dots = HorizontalSum4(d0, d1, d2, d3), norms = HorizontalSum4(n0, n1, n2, n3);  \
+      if (32 * blocks < dims) {                                                               \
+        alignas(16) int32_t dt[4], nt[4];                                                     \
+        _mm_store_si128(reinterpret_cast<__m128i*>(dt), dots);                                \
+        _mm_store_si128(reinterpret_cast<__m128i*>(nt), norms);                               \
+        for (int j = 0; j < 4; ++j) tail(r + j * stride, &dt[j], &nt[j]);                     \
+        dots = _mm_load_si128(reinterpret_cast<const __m128i*>(dt));                          \
+        norms = _mm_load_si128(reinterpret_cast<const __m128i*>(nt));                         \
+      }                                                                                       \
+      Cosine4(dots, qq, norms, out + i);                                                      \
+    }                                                                                         \
+    for (; i < count; ++i) {                                                                  \
+      const int8_t* r = rows + i * stride;                                                    \
+      __m256i dot = _mm256_setzero_si256(), rr = dot;                                         \
+      for (int b = 0; b < blocks; ++b) {                                                      \
+        const __m256i q = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(query + 32 * b)); \
+        BLOCK(_mm256_abs_epi8(q), q, r + 32 * b, &dot, &rr);                                  \
+      }                                                                                       \
+      int32_t d32 = HorizontalSum(dot), r32 = HorizontalSum(rr);                              \
+      tail(r, &d32, &r32);                                                                    \
+      out[i] = Cosine(d32, qq, r32);                                                          \
+    }                                                                                         \
+    _mm256_zeroupper();                                                                       \
+  }
+
+PLACEDB_WHOLE_IMAGE_PASS(PLACEDB_AVX2, SimilaritiesAvx2, BlockAvx2)
+PLACEDB_WHOLE_IMAGE_PASS(PLACEDB_AVXVNNI, SimilaritiesAvxVnni, BlockAvxVnni)
+#undef PLACEDB_WHOLE_IMAGE_PASS
+#undef PLACEDB_AVXVNNI
+#undef PLACEDB_AVX2
 
 bool CpuRuns(WholeImageKernel kernel) {
   __builtin_cpu_init();
-  return kernel == WholeImageKernel::kReference || __builtin_cpu_supports("avx2");
+  switch (kernel) {
+    case WholeImageKernel::kReference:
+      return true;
+    case WholeImageKernel::kAvx2:
+      return __builtin_cpu_supports("avx2");
+    case WholeImageKernel::kAvxVnni:
+      // __builtin_cpu_supports knows "avxvnni" from GCC 11 on.
+      return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("avxvnni");
+  }
+  return false;
 }
 #else
 bool CpuRuns(WholeImageKernel kernel) { return kernel == WholeImageKernel::kReference; }
@@ -174,20 +235,40 @@ double WholeImageSimilarity(const int8_t* a, const int8_t* b, int dims) {
 }
 
 const char* WholeImageKernelName(WholeImageKernel kernel) {
-  return kernel == WholeImageKernel::kAvx2 ? "avx2" : "reference";
+  switch (kernel) {
+    case WholeImageKernel::kAvx2:
+      return "avx2";
+    case WholeImageKernel::kAvxVnni:
+      return "avxvnni";
+    default:
+      return "reference";
+  }
 }
+
+namespace {
+// What the CPU runs, found once; kernels are listed slowest first.
+struct WholeImageSupport {
+  bool runs[kNumWholeImageKernels] = {};
+  WholeImageKernel best = WholeImageKernel::kReference;
+  WholeImageSupport() {
+    for (int k = 0; k < kNumWholeImageKernels; ++k) {
+      runs[k] = CpuRuns(static_cast<WholeImageKernel>(k));
+      if (runs[k]) best = static_cast<WholeImageKernel>(k);
+    }
+  }
+};
+const WholeImageSupport& Support() {
+  static const WholeImageSupport support;
+  return support;
+}
+}  // namespace
 
 bool WholeImageKernelAvailable(WholeImageKernel kernel) {
-  static const bool avx2 = CpuRuns(WholeImageKernel::kAvx2);
-  return kernel == WholeImageKernel::kReference || (kernel == WholeImageKernel::kAvx2 && avx2);
+  const int k = static_cast<int>(kernel);
+  return k >= 0 && k < kNumWholeImageKernels && Support().runs[k];
 }
 
-WholeImageKernel ActiveWholeImageKernel() {
-  static const WholeImageKernel active = WholeImageKernelAvailable(WholeImageKernel::kAvx2)
-                                             ? WholeImageKernel::kAvx2
-                                             : WholeImageKernel::kReference;
-  return active;
-}
+WholeImageKernel ActiveWholeImageKernel() { return Support().best; }
 
 void WholeImageSimilaritiesWith(WholeImageKernel kernel, const int8_t* query, const int8_t* rows,
                                 size_t count, int dims, float* out) {
@@ -198,6 +279,8 @@ void WholeImageSimilaritiesWith(WholeImageKernel kernel, const int8_t* query, co
   }
 #if PLACEDB_X86
   if (kernel == WholeImageKernel::kAvx2) return SimilaritiesAvx2(query, rows, count, dims, out);
+  if (kernel == WholeImageKernel::kAvxVnni)
+    return SimilaritiesAvxVnni(query, rows, count, dims, out);
 #endif
   SimilaritiesReference(query, rows, count, dims, out);
 }

@@ -35,14 +35,15 @@ double WholeImageSimilarity(const int8_t* a, const int8_t* b, int dims);
 // products and the rows' squared norms together. Values must be in [-127,
 // 127] (what ComputeWholeImageDescriptor gives, and the database accepts);
 // dims in [1, 2^16]. The kernel is chosen once from the CPU's features
-// (AVX2 when it has it); every kernel gives the same numbers.
+// (AVX-VNNI, else AVX2, else the reference); every kernel gives the same
+// numbers.
 void WholeImageSimilarities(const int8_t* query, const int8_t* rows, size_t count, int dims,
                             float* out);
 
 // The kernels, for tests and benchmarks. Each returns with the upper vector
 // state clean (vzeroupper).
-enum class WholeImageKernel { kReference = 0, kAvx2 = 1 };
-constexpr int kNumWholeImageKernels = 2;
+enum class WholeImageKernel { kReference = 0, kAvx2 = 1, kAvxVnni = 2 };
+constexpr int kNumWholeImageKernels = 3;
 const char* WholeImageKernelName(WholeImageKernel kernel);
 bool WholeImageKernelAvailable(WholeImageKernel kernel);
 // The kernel WholeImageSimilarities uses on this CPU.

@@ -114,7 +114,7 @@ std::vector<int8_t> RandomRows(size_t n, uint64_t seed) {
 
 TEST(WholeImageTest, KernelsEqualTheReference) {
   for (const int dims : {1, 7, 31, 32, 33, 63, 95, 768, 769, 4096}) {
-    const size_t count = 37;
+    const size_t count = 37;  // groups of four rows and one left over
     const std::vector<int8_t> q = RandomRows(dims, dims);
     std::vector<int8_t> rows = RandomRows(count * dims, dims + 1000);
     // Extremes, a zero row and the query itself among them.
@@ -144,6 +144,10 @@ TEST(WholeImageTest, KernelsEqualTheReference) {
       WholeImageSimilaritiesWith(kernel, q.data(), shifted.data() + 1, count, dims, got.data());
       for (size_t i = 0; i < count; ++i)
         EXPECT_EQ(got[i], ref[i]) << WholeImageKernelName(kernel) << " dims " << dims << " " << i;
+      // A zero query: every cosine 0.
+      const std::vector<int8_t> zero(static_cast<size_t>(dims), 0);
+      WholeImageSimilaritiesWith(kernel, zero.data(), rows.data(), count, dims, got.data());
+      for (size_t i = 0; i < count; ++i) EXPECT_EQ(got[i], 0.0f) << WholeImageKernelName(kernel);
       if (testing_util::DirtyUpperStateKnown()) {
         EXPECT_FALSE(testing_util::DirtyUpperState()) << WholeImageKernelName(kernel);
       }

@@ -486,7 +486,8 @@ Database::SaveResult Database::Save(const std::string& dir) const {
       char preamble[kf::kWholeImagePreambleBytes] = {};
       SetField<uint32_t>(preamble, 0, static_cast<uint32_t>(whole_image_dims_));
       put(preamble, sizeof(preamble));
-      put(WholeImageData(), keyframes_.size() * whole_image_dims_);
+      // An empty database's rows may be a null pointer (no memcpy from it).
+      if (!keyframes_.empty()) put(WholeImageData(), keyframes_.size() * whole_image_dims_);
     });
   }
   const Written keypoints = section([&](auto put) {

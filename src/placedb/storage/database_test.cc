@@ -237,6 +237,14 @@ TEST(DatabaseTest, EmptyDatabaseRoundTrip) {
   EXPECT_TRUE(loaded.empty());
   EXPECT_EQ(loaded.num_features(), 0u);
   EXPECT_EQ(loaded.feature_type(), FeatureType::kOrb);
+  EXPECT_EQ(loaded.whole_image_dims(), 0);
+  // With a whole-image channel and no rows: the section is its preamble.
+  TempDir with;
+  Database channel(FeatureType::kOrb, 32, 768);
+  channel.Save(with.Path());
+  const Database back = Database::Load(with.Path());
+  EXPECT_TRUE(back.empty());
+  EXPECT_EQ(back.whole_image_dims(), 768);
 }
 
 TEST(DatabaseTest, KeyframeToOriginal) {
