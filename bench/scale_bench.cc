@@ -166,6 +166,8 @@ struct ModeRun {
   std::string mode;
   double deadline_ms = 0.0;
   int guided_candidates = 0;    // bow and cluster: matched in full after guided ranking; 0: all
+  double whole_image_weight = 0.0;  // the whole-image channel's (0: off)
+  int whole_image_candidates = 0;
   std::vector<size_t> queries;  // indices into the query list
   std::vector<double> ms;       // per run query
   std::vector<double> overshoot_ms;
@@ -192,8 +194,11 @@ struct ModeRun {
 
 ModeRun RunMode(const placedb::PlaceDatabase& db, const std::vector<Query>& queries,
                 const std::vector<size_t>& which, const std::string& mode, double deadline_ms,
-                size_t num_places, int bow_candidates, int guided_candidates) {
+                size_t num_places, int bow_candidates, int guided_candidates,
+                double whole_image_weight = 0.0, int whole_image_candidates = 0) {
   placedb::QueryOptions options;
+  options.whole_image_weight = whole_image_weight;
+  options.whole_image_candidates = whole_image_candidates;
   options.retrieval.bow_candidates = bow_candidates;
   options.retrieval.guided_candidates = guided_candidates;
   options.retrieval.method = placedb::ParseRetrievalMethod(mode);
@@ -202,6 +207,8 @@ ModeRun RunMode(const placedb::PlaceDatabase& db, const std::vector<Query>& quer
   run.mode = mode;
   run.deadline_ms = deadline_ms;
   run.guided_candidates = mode == "exhaustive" ? 0 : guided_candidates;
+  run.whole_image_weight = whole_image_weight;
+  run.whole_image_candidates = whole_image_candidates;
   run.queries = which;
   const auto query = [&](const Query& q) {
     placedb::QueryOptions o = options;
@@ -263,7 +270,8 @@ int main(int argc, char** argv) {
   int fast_threshold = 5, bow_candidates = placedb::RetrievalOptions().bow_candidates;
   int guided_candidates = placedb::RetrievalOptions().guided_candidates;
   std::vector<int> compare_guided = {0, 10};
-  double deadline_ms = 2.0, cluster_radius = 0.5;
+  double deadline_ms = 2.0, cluster_radius = 0.5, whole_image_weight = 50.0;
+  int whole_image_candidates = 2;
   std::string out = "out/bench/scale", json_path, data = PLACEDB_DATA_DIR;
   app.add_option("--sizes", sizes, "database sizes, keyframes")
       ->delimiter(',')
@@ -292,6 +300,15 @@ int main(int argc, char** argv) {
                  "bow also runs with these --guided-candidates (0: unguided, all matched)")
       ->delimiter(',')
       ->check(CLI::Range(0, 100000))
+      ->capture_default_str();
+  app.add_option("--whole-image-weight", whole_image_weight,
+                 "bow and exhaustive also run with the whole-image channel at this weight (0: "
+                 "not)")
+      ->check(CLI::Range(0.0, 10000.0))
+      ->capture_default_str();
+  app.add_option("--whole-image-candidates", whole_image_candidates,
+                 "that run's bow also matches this many keyframes most similar by thumbnail")
+      ->check(CLI::Range(0, 1000))
       ->capture_default_str();
   app.add_option("--cluster-radius", cluster_radius,
                  "cluster radius, metres (views of one "
@@ -437,11 +454,18 @@ int main(int argc, char** argv) {
           runs.push_back(RunMode(db, queries, all, m, deadline_ms, num_sources, bow_candidates,
                                  guided_candidates));
         }
+        if ((m == "bow" || m == "exhaustive") && whole_image_weight > 0) {
+          // The whole-image channel on (query/result.h): fused scores, and
+          // bow also matches the keyframes most similar by thumbnail.
+          runs.push_back(RunMode(db, queries, m == "exhaustive" ? subset : all, m, 0.0,
+                                 num_sources, bow_candidates, guided_candidates,
+                                 whole_image_weight, whole_image_candidates));
+        }
       }
       const double limit_ms = query_features * db.num_features() * ns / 1e6;
       const ModeRun* exhaustive = nullptr;
       for (const ModeRun& r : runs) {
-        if (r.mode == "exhaustive") exhaustive = &r;
+        if (r.mode == "exhaustive" && r.whole_image_weight == 0 && !exhaustive) exhaustive = &r;
       }
 
       nlohmann::json size = {
@@ -478,10 +502,13 @@ int main(int argc, char** argv) {
                                            : fmt::format(", guided {}", r.guided_candidates);
         }
         if (r.deadline_ms > 0) name += fmt::format(", deadline {:g} ms", r.deadline_ms);
+        if (r.whole_image_weight > 0) name += " + whole image";
         nlohmann::json m = {
             {"mode", r.mode},
             {"deadline_ms", r.deadline_ms},
             {"guided_candidates", r.guided_candidates},
+            {"whole_image_weight", r.whole_image_weight},
+            {"whole_image_candidates", r.whole_image_candidates},
             {"queries", nq},
             {"latency_ms", StatsJson(s)},
             {"recall_at_1", recall},
@@ -499,7 +526,7 @@ int main(int argc, char** argv) {
             {"deadline_reached", r.deadline_reached},
             {"searches", r.searches}};
         std::string vs;
-        if (r.mode == "exhaustive") {
+        if (r.mode == "exhaustive" && r.whole_image_weight == 0) {
           m["vs_popcount_limit"] = limit_ms > 0 ? s.p50 / limit_ms : 0.0;
           vs = fmt::format("p50 = {:.2f}x the popcount limit", s.p50 / limit_ms);
         } else if (exhaustive != nullptr) {

@@ -79,8 +79,10 @@ class SurfExtractor : public FeatureExtractor {
 constexpr double kMaxUpscale = 4.0;
 class UpscalingExtractor : public FeatureExtractor {
  public:
-  UpscalingExtractor(std::unique_ptr<FeatureExtractor> inner, int upscale_below)
-      : inner_(std::move(inner)), upscale_below_(upscale_below) {}
+  // `small`: the extractor of upscaled images (nullptr: `inner`).
+  UpscalingExtractor(std::unique_ptr<FeatureExtractor> inner,
+                     std::unique_ptr<FeatureExtractor> small, int upscale_below)
+      : inner_(std::move(inner)), small_(std::move(small)), upscale_below_(upscale_below) {}
 
   FeatureSet Extract(const cv::Mat& image) const override {
     const int shorter = std::min(image.cols, image.rows);
@@ -97,7 +99,7 @@ class UpscalingExtractor : public FeatureExtractor {
                cv::Size(static_cast<int>(std::lround(image.cols * f)),
                         static_cast<int>(std::lround(image.rows * f))),
                0, 0, cv::INTER_LINEAR);
-    FeatureSet set = inner_->Extract(big);
+    FeatureSet set = small_ ? small_->Extract(big) : inner_->Extract(big);
     const double fx = static_cast<double>(big.cols) / image.cols;
     const double fy = static_cast<double>(big.rows) / image.rows;
     for (cv::KeyPoint& kp : set.keypoints) {
@@ -110,7 +112,7 @@ class UpscalingExtractor : public FeatureExtractor {
   FeatureType type() const override { return inner_->type(); }
 
  private:
-  std::unique_ptr<FeatureExtractor> inner_;
+  std::unique_ptr<FeatureExtractor> inner_, small_;
   int upscale_below_;
 };
 
@@ -148,7 +150,15 @@ std::unique_ptr<FeatureExtractor> FeatureExtractor::Create(const ExtractorOption
   }
   if (!extractor) PLACEDB_THROW_INVALID("unknown feature type");
   if (options.upscale_below > 0) {
-    extractor = std::make_unique<UpscalingExtractor>(std::move(extractor), options.upscale_below);
+    std::unique_ptr<FeatureExtractor> small;
+    if (options.type == FeatureType::kOrb && options.upscaled_fast_threshold > 0 &&
+        options.upscaled_fast_threshold != options.orb.fast_threshold) {
+      OrbOptions orb = options.orb;
+      orb.fast_threshold = options.upscaled_fast_threshold;
+      small = std::make_unique<OrbExtractor>(orb);
+    }
+    extractor = std::make_unique<UpscalingExtractor>(std::move(extractor), std::move(small),
+                                                     options.upscale_below);
   }
   if (options.whole_image.enabled) {
     extractor = std::make_unique<WholeImageExtractor>(std::move(extractor), options.whole_image);

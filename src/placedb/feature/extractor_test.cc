@@ -52,9 +52,9 @@ TEST(ExtractorTest, TinyAndEmptyImagesGiveNoFeatures) {
 }
 
 // Small frames are upscaled for extraction and the keypoints mapped back:
-// a 160x120 frame gives far more ORB features (measured 383 vs 130 on image
+// a 160x120 frame gives far more ORB features (measured 450 vs 130 on image
 // 001), every keypoint lies inside the small frame, exactly where the
-// features of the 2x image are, halved; frames at or above the limit are
+// features of the 2x image (at upscaled_fast_threshold) are, halved; frames at or above the limit are
 // left as they are.
 TEST(ExtractorTest, SmallFramesAreUpscaledAndKeypointsMappedBack) {
   const cv::Mat full = cv::imread(PLACEDB_DATA_DIR "/rtabmap_loop/images/001.jpg");
@@ -70,7 +70,10 @@ TEST(ExtractorTest, SmallFramesAreUpscaledAndKeypointsMappedBack) {
   EXPECT_EQ(up.descriptors.rows, static_cast<int>(up.size()));
   cv::Mat twice;
   cv::resize(small, twice, cv::Size(320, 240), 0, 0, cv::INTER_LINEAR);
-  const FeatureSet direct = FeatureExtractor::Create(off)->Extract(twice);
+  // Upscaled frames use upscaled_fast_threshold (default 5) for FAST.
+  ExtractorOptions direct_options = off;
+  direct_options.orb.fast_threshold = ExtractorOptions().upscaled_fast_threshold;
+  const FeatureSet direct = FeatureExtractor::Create(direct_options)->Extract(twice);
   ASSERT_EQ(direct.size(), up.size());
   for (size_t i = 0; i < up.size(); ++i) {
     const cv::KeyPoint& k = up.keypoints[i];
@@ -83,6 +86,14 @@ TEST(ExtractorTest, SmallFramesAreUpscaledAndKeypointsMappedBack) {
     EXPECT_NEAR(k.size, direct.keypoints[i].size / 2, 1e-4);
   }
   EXPECT_EQ(cv::norm(direct.descriptors, up.descriptors, cv::NORM_HAMMING), 0.0);
+  // With upscaled_fast_threshold 0 the frame's own threshold (20) applies:
+  // fewer corners in the blurred upscaled frame.
+  ExtractorOptions same;
+  same.upscaled_fast_threshold = 0;
+  const FeatureSet at20 = FeatureExtractor::Create(same)->Extract(small);
+  std::printf("160x120 upscaled: %zu features at FAST 5, %zu at 20\n", up.size(), at20.size());
+  EXPECT_LT(at20.size(), up.size());
+  EXPECT_GT(at20.size(), plain.size());
   // 512x384 is above the limit: the same features either way.
   const FeatureSet a = FeatureExtractor::Create(off)->Extract(full);
   const FeatureSet b = FeatureExtractor::Create(ExtractorOptions())->Extract(full);

@@ -77,6 +77,10 @@ const OptionTable<ExtractorOptions>& ExtractorOptions::Table() {
     t.Number("upscale_below", PLACEDB_MEMBER(O, upscale_below), OptionRange::Closed(0, 4096),
              "small frames: upscale images whose shorter side is below this for extraction "
              "(0: never)");
+    t.Number("upscaled_fast_threshold", PLACEDB_MEMBER(O, upscaled_fast_threshold),
+             OptionRange::Closed(0, 255),
+             "small frames: ORB's FAST threshold on the upscaled images (0: orb_fast_threshold)")
+        .absent = int64_t{0};
     t.Nest(PLACEDB_MEMBER(O, whole_image), WholeImageOptions::Table());
     return t;
   }();

@@ -43,8 +43,9 @@ QueryResult MergeQueryResults(const std::vector<QueryResult>& parts, const Query
   // The whole database's match-stage survivors are the best of the parts'
   // (each part kept its own best, which include all of the global best).
   const size_t keep = KeptAfterMatching(options);
-  auto more_matches = [](const RankedKeyframe& a, const RankedKeyframe& b) {
-    return MoreMatches(a.keyframe_id, a.num_matches, b.keyframe_id, b.num_matches);
+  // What the match stage kept: by matches plus the whole-image bonus.
+  auto more_matches = [&](const RankedKeyframe& a, const RankedKeyframe& b) {
+    return MoreEvidence(a.keyframe_id, MatchKey(a, options), b.keyframe_id, MatchKey(b, options));
   };
   std::sort(all.begin(), all.end(), more_matches);
   if (all.size() > keep) all.resize(keep);

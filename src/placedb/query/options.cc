@@ -78,8 +78,19 @@ const OptionTable<QueryOptions>& QueryOptions::Table() {
     t.Nest(PLACEDB_MEMBER(O, prior), QueryPrior::Table(), kQuery);
     t.Nest(PLACEDB_MEMBER(O, match), MatchOptions::Table(), kQuery);
     t.Number("min_matches", PLACEDB_MEMBER(O, min_matches), OptionRange::Closed(1, 100000),
-             "fewest matches for a keyframe to be ranked", kQuery);
+             "fewest matches for a keyframe to be ranked (or a positive whole-image bonus)",
+             kQuery);
     t.Nest(PLACEDB_MEMBER(O, verify), VerifyOptions::Table(), kQuery);
+    t.Number("whole_image_weight", PLACEDB_MEMBER(O, whole_image_weight),
+             OptionRange::Closed(0, 10000),
+             "whole-image channel: a keyframe's score adds this times its whole-image similarity "
+             "(when positive) to its inliers (or matches); 0: the channel does not score",
+             kQuery);
+    t.Number("whole_image_candidates", PLACEDB_MEMBER(O, whole_image_candidates),
+             OptionRange::Closed(0, 1000),
+             "whole-image channel: bow and cluster search also match the keyframes this many most "
+             "similar by whole-image descriptor",
+             kQuery);
     t.Number("min_score", PLACEDB_MEMBER(O, min_score), OptionRange::Closed(0, 100000),
              "decide stage: the best keyframe is the answer when its score (inliers when "
              "verified, else matches) is at least this; else 'no match'",

@@ -3,8 +3,10 @@
 // and decides exactly as the whole database's.
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 
 #include "placedb/query/result.h"
 
@@ -12,10 +14,30 @@ namespace placedb {
 namespace query_order {
 
 // Match-stage order: more matches first, then the lower id.
-inline bool MoreMatches(int32_t id_a, int a, int32_t id_b, int b) { return a != b ? a > b : id_a < id_b; }
+inline bool MoreMatches(int32_t id_a, int a, int32_t id_b, int b) {
+  return a != b ? a > b : id_a < id_b;
+}
 
-// Final order: verified ones by inliers, then matches, then id; unverified by
-// matches, then id.
+// The whole-image channel's part of a score: weight x max(0, similarity); 0
+// without the channel.
+inline double WholeImageBonus(const std::optional<double>& similarity,
+                              const QueryOptions& options) {
+  return similarity ? options.whole_image_weight * std::max(0.0, *similarity) : 0.0;
+}
+
+// The match stage's key: matches plus the whole-image bonus. A verified score
+// (inliers plus the same bonus) never exceeds it.
+inline double MatchKey(const RankedKeyframe& r, const QueryOptions& options) {
+  return r.num_matches + WholeImageBonus(r.whole_image, options);
+}
+
+// Match-stage order on keys: the larger first, then the lower id.
+inline bool MoreEvidence(int32_t id_a, double a, int32_t id_b, double b) {
+  return a != b ? a > b : id_a < id_b;
+}
+
+// Final order: by score (verified: inliers, else matches; plus the
+// whole-image bonus), then matches, then id.
 inline bool RanksFirst(const RankedKeyframe& a, const RankedKeyframe& b) {
   if (a.score != b.score) return a.score > b.score;
   return MoreMatches(a.keyframe_id, a.num_matches, b.keyframe_id, b.num_matches);

@@ -8,6 +8,7 @@
 #include <mutex>
 #include <unordered_set>
 
+#include "placedb/feature/whole_image.h"
 #include "placedb/query/order.h"
 #include "placedb/retrieval/clusters.h"
 #include "placedb/util/check.h"
@@ -43,6 +44,19 @@ void ValidateQueryFeatures(const FeatureSet& features, const Database& db) {
   if (static_cast<size_t>(d.rows) != features.keypoints.size()) {
     PLACEDB_THROW_INVALID("the query has ", features.keypoints.size(), " keypoints but ", d.rows,
                           " descriptor rows");
+  }
+  // The whole-image descriptor, when the query has one and the database the
+  // channel: the size the database stores, values in [-127, 127].
+  const cv::Mat& w = features.whole_image;
+  if (!w.empty() && db.whole_image_dims() > 0) {
+    if (w.type() != CV_8SC1 || w.rows != 1 || w.cols != db.whole_image_dims() ||
+        !w.isContinuous()) {
+      PLACEDB_THROW_INVALID("the query's whole-image descriptor is not a continuous 1 x ",
+                            db.whole_image_dims(), " int8 row (the database's)");
+    }
+    const int8_t* v = w.ptr<int8_t>();
+    if (std::find(v, v + w.cols, static_cast<int8_t>(-128)) != v + w.cols)
+      PLACEDB_THROW_INVALID("the query's whole-image descriptor holds -128");
   }
   if (features.keypoints.empty()) return;
   const int expected_depth = db.feature_type() == FeatureType::kOrb ? CV_8U : CV_32F;
@@ -82,11 +96,36 @@ struct Examined {
   int32_t id = 0;
   int num_matches = 0;
   std::vector<cv::DMatch> matches;
+  std::optional<double> whole_image;  // similarity, with the channel
+  double key = 0.0;                   // matches + the whole-image bonus (order.h)
 };
+
+// The whole-image similarity of every keyframe (by index) to the query; empty
+// without the channel.
+struct WholeImageScores {
+  std::vector<float> similarity;
+  std::optional<double> Of(uint32_t index) const {
+    if (similarity.empty()) return std::nullopt;
+    return static_cast<double>(similarity[index]);
+  }
+};
+
+Examined MakeExamined(const Database& db, uint32_t index, int good, std::vector<cv::DMatch> matches,
+                      const WholeImageScores& whole, const QueryOptions& options) {
+  Examined e{index, db.keyframe(index).id, good, std::move(matches), whole.Of(index), 0.0};
+  e.key = good + WholeImageBonus(e.whole_image, options);
+  return e;
+}
+
+// Whether an examined keyframe is ranked: enough matches, or whole-image
+// evidence (a tiny or featureless frame still has its thumbnail).
+bool Ranked(int good, const std::optional<double>& whole_image, const QueryOptions& options) {
+  return good >= options.min_matches || WholeImageBonus(whole_image, options) > 0.0;
+}
 
 void KeepBest(std::vector<Examined>* list, size_t keep) {
   auto order = [](const Examined& a, const Examined& b) {
-    return MoreMatches(a.id, a.num_matches, b.id, b.num_matches);
+    return MoreEvidence(a.id, a.key, b.id, b.key);
   };
   if (list->size() > keep) {
     std::nth_element(list->begin(), list->begin() + static_cast<ptrdiff_t>(keep), list->end(),
@@ -119,7 +158,8 @@ RankedKeyframe Describe(const Database& db, const Examined& e, const std::string
   RankedKeyframe r;
   r.keyframe_id = k.id;
   r.num_matches = e.num_matches;
-  r.score = e.num_matches;
+  r.whole_image = e.whole_image;
+  r.score = e.key;
   r.pose = k.pose;
   r.timestamp = k.timestamp;
   r.source = k.source;
@@ -161,7 +201,7 @@ struct Examination {
 // cannot reach the top k.
 Examination ExamineAll(const Database& db, const GroupedFeatures& grouped,
                        const std::vector<Candidate>& candidates, const QueryOptions& options,
-                       const QueryContext& context) {
+                       const QueryContext& context, const WholeImageScores& whole) {
   Examination out;
   Timer stage;
   const size_t keep = KeptAfterMatching(options);
@@ -177,9 +217,9 @@ Examination ExamineAll(const Database& db, const GroupedFeatures& grouped,
       matches.clear();
       const int good = MatchDescriptors(grouped.block, db.Descriptors(index), options.match,
                                         need_matches ? &matches : nullptr);
-      if (good < options.min_matches) continue;
-      kept.push_back(
-          {index, db.keyframe(index).id, good, need_matches ? matches : std::vector<cv::DMatch>()});
+      if (!Ranked(good, whole.Of(index), options)) continue;
+      kept.push_back(MakeExamined(
+          db, index, good, need_matches ? matches : std::vector<cv::DMatch>(), whole, options));
       if (kept.size() > 2 * keep + 64) KeepBest(&kept, keep);  // bounded memory
     }
     KeepBest(&kept, keep);
@@ -202,26 +242,27 @@ Examination ExamineAll(const Database& db, const GroupedFeatures& grouped,
     if (!options.verify.enabled) return;
     ranked[i].num_inliers =
         VerifyKeyframe(db, best[i].index, grouped.set, best[i].matches, options.verify).num_inliers;
-    ranked[i].score = ranked[i].num_inliers;
+    ranked[i].score = ranked[i].num_inliers + WholeImageBonus(ranked[i].whole_image, options);
   };
   const auto fill_range = [&](size_t first, size_t last) {
     if (first < last) ForEach(context.pool, last - first, [&](size_t i) { fill(first + i); });
   };
   // Only what can reach the top k is verified: once k candidates are
-  // verified, one with fewer matches than the k-th best inlier count so far
-  // cannot rank among them (inliers are a subset of its matches), nor can
-  // any after it (fewer matches still). In two rounds, so that which ones
-  // are verified does not depend on the threads: the best k by matches,
-  // then those of the rest that could still rank.
+  // verified, one whose key (matches + whole-image bonus) is below the k-th
+  // best score so far cannot rank among them (inliers are a subset of its
+  // matches, the bonus the same), nor can any after it (smaller keys still).
+  // In two rounds, so that which ones are verified does not depend on the
+  // threads: the best k by key, then those of the rest that could still
+  // rank.
   const size_t top_k = static_cast<size_t>(options.top_k);
   if (!options.verify.enabled || ranked.size() <= top_k) {
     fill_range(0, ranked.size());
   } else {
     fill_range(0, top_k);
-    int kth = ranked[0].num_inliers;
-    for (size_t i = 1; i < top_k; ++i) kth = std::min(kth, ranked[i].num_inliers);
+    double kth = ranked[0].score;
+    for (size_t i = 1; i < top_k; ++i) kth = std::min(kth, ranked[i].score);
     size_t last = top_k;
-    while (last < ranked.size() && best[last].num_matches >= kth) ++last;
+    while (last < ranked.size() && best[last].key >= kth) ++last;
     fill_range(top_k, last);
   }
   for (size_t i = 0; i < ranked.size(); ++i) {
@@ -241,7 +282,8 @@ Examination ExamineAll(const Database& db, const GroupedFeatures& grouped,
 // beyond that; the first candidate is always examined and verified.
 Examination ExamineTimed(const Database& db, const GroupedFeatures& grouped,
                          const std::vector<Candidate>& candidates, const QueryOptions& options,
-                         const QueryContext& context, const Deadline& deadline) {
+                         const QueryContext& context, const Deadline& deadline,
+                         const WholeImageScores& whole) {
   Examination out;
   const size_t keep = KeptAfterMatching(options);
   const bool verify = options.verify.enabled;
@@ -259,11 +301,11 @@ Examination ExamineTimed(const Database& db, const GroupedFeatures& grouped,
   const auto in_best = [&](const Examined& e) {  // under `mutex`
     if (best.size() < keep) return true;
     const Examined& worst = best.back().e;
-    return MoreMatches(e.id, e.num_matches, worst.id, worst.num_matches);
+    return MoreEvidence(e.id, e.key, worst.id, worst.key);
   };
   const auto insert = [&](Kept k) {  // under `mutex`
     const auto at = std::find_if(best.begin(), best.end(), [&](const Kept& b) {
-      return MoreMatches(k.e.id, k.e.num_matches, b.e.id, b.e.num_matches);
+      return MoreEvidence(k.e.id, k.e.key, b.e.id, b.e.key);
     });
     best.insert(at, std::move(k));
     if (best.size() > keep) best.pop_back();
@@ -285,9 +327,9 @@ Examination ExamineTimed(const Database& db, const GroupedFeatures& grouped,
       examined.fetch_add(1, std::memory_order_relaxed);
       const double matched_ms = t.ElapsedMs();
       double verified_ms = 0.0;
-      if (good >= options.min_matches) {
-        Examined e{index, db.keyframe(index).id, good,
-                   verify ? matches : std::vector<cv::DMatch>()};
+      if (Ranked(good, whole.Of(index), options)) {
+        Examined e = MakeExamined(db, index, good, verify ? matches : std::vector<cv::DMatch>(),
+                                  whole, options);
         bool candidate;
         {
           std::lock_guard<std::mutex> lock(mutex);
@@ -300,7 +342,7 @@ Examination ExamineTimed(const Database& db, const GroupedFeatures& grouped,
             Timer v;
             k.r.num_inliers =
                 VerifyKeyframe(db, index, grouped.set, k.e.matches, options.verify).num_inliers;
-            k.r.score = k.r.num_inliers;
+            k.r.score = k.r.num_inliers + WholeImageBonus(k.r.whole_image, options);
             k.e.matches.clear();  // not needed any more
             verified_ms = v.ElapsedMs();
           }
@@ -325,6 +367,51 @@ Examination ExamineTimed(const Database& db, const GroupedFeatures& grouped,
   out.verify_ms = verify ? verify_ms : 0.0;
   out.costliest_ms = cost.Get();
   return out;
+}
+
+// The whole-image channel: every keyframe's similarity to the query, when
+// the database has the channel and the query a descriptor of its size (a
+// query from an image; features from elsewhere carry none).
+WholeImageScores ScoreWholeImages(const Database& db, const FeatureSet& query,
+                                  const QueryOptions& options) {
+  WholeImageScores s;
+  const int dims = db.whole_image_dims();
+  if (dims <= 0 || query.whole_image.empty() || db.size() == 0) return s;
+  if (options.whole_image_weight <= 0.0 && options.whole_image_candidates <= 0) return s;
+  s.similarity.resize(db.size());
+  WholeImageSimilarities(query.whole_image.ptr<int8_t>(), db.WholeImageData(), db.size(), dims,
+                         s.similarity.data());
+  return s;
+}
+
+// Appends the whole_image_candidates keyframes of the restriction most similar
+// to the query (then the lower index) that retrieval did not find.
+void AddWholeImageCandidates(const WholeImageScores& whole, const QueryOptions& options,
+                             const std::vector<uint32_t>* among, const uint8_t* excluded,
+                             std::vector<Candidate>* candidates) {
+  const size_t m = static_cast<size_t>(options.whole_image_candidates);
+  if (m == 0) return;
+  std::vector<uint32_t> pool;
+  const auto consider = [&](uint32_t i) {
+    if (excluded == nullptr || excluded[i] == 0) pool.push_back(i);
+  };
+  if (among != nullptr) {
+    for (const uint32_t i : *among) consider(i);
+  } else {
+    for (uint32_t i = 0; i < whole.similarity.size(); ++i) consider(i);
+  }
+  const auto more_similar = [&](uint32_t a, uint32_t b) {
+    const float sa = whole.similarity[a], sb = whole.similarity[b];
+    return sa != sb ? sa > sb : a < b;
+  };
+  const size_t take = std::min(m, pool.size());
+  std::partial_sort(pool.begin(), pool.begin() + static_cast<ptrdiff_t>(take), pool.end(),
+                    more_similar);
+  std::unordered_set<uint32_t> have;
+  for (const Candidate& c : *candidates) have.insert(c.index);
+  for (size_t i = 0; i < take; ++i) {
+    if (have.insert(pool[i]).second) candidates->push_back({pool[i], whole.similarity[pool[i]]});
+  }
 }
 
 // retrieve -> match -> verify -> decide over `among` (sorted, unique, in
@@ -358,16 +445,19 @@ QueryResult RunStages(const Database& db, const FeatureSet& query, const QueryOp
   const Deadline retrieve_deadline =
       deadline.enabled() ? Deadline(clock, std::max(options.deadline_ms - reserve, 1e-9))
                          : Deadline();
-  const std::vector<Candidate> candidates =
+  std::vector<Candidate> candidates =
       retriever.Retrieve(db, query, among, excluded, retrieve_deadline, &retrieve_stopped);
+  const WholeImageScores whole = ScoreWholeImages(db, query, options);
+  if (!whole.similarity.empty() && retriever.method() != RetrievalMethod::kExhaustive)
+    AddWholeImageCandidates(whole, options, among, excluded, &candidates);
   result.times.retrieve_ms = stage.ElapsedMs();
 
   // Match and verify. SURF: the query's rows grouped by Laplacian sign,
   // like the database's.
   const GroupedFeatures grouped = GroupByLaplacian(query);
   Examination e = deadline.enabled()
-                      ? ExamineTimed(db, grouped, candidates, options, context, deadline)
-                      : ExamineAll(db, grouped, candidates, options, context);
+                      ? ExamineTimed(db, grouped, candidates, options, context, deadline, whole)
+                      : ExamineAll(db, grouped, candidates, options, context, whole);
   if (deadline.enabled() && context.candidate_cost != nullptr && e.examined > 0)
     context.candidate_cost->Report(e.costliest_ms);
   result.num_examined = e.examined;

@@ -15,8 +15,9 @@
 #include <set>
 #include <sstream>
 
-#include "placedb/dataset/image_folder.h"
 #include "placedb/builder/builder.h"
+#include "placedb/dataset/image_folder.h"
+#include "placedb/feature/whole_image.h"
 #include "placedb/query/ranking.h"
 #include "placedb/util/testing.h"
 #include "placedb/util/thread_pool.h"
@@ -50,7 +51,7 @@ class QueryTest : public ::testing::Test {
   static void SetUpTestSuite() {
     extractor_ = FeatureExtractor::Create(ExtractorOptions()).release();
     features_ = new std::map<int, FeatureSet>();
-    db_ = new Database(FeatureType::kOrb, 32);
+    db_ = new Database(FeatureType::kOrb, 32, WholeImageDims(ExtractorOptions()));
     for (int i = 1; i <= 84; ++i) {
       const cv::Mat image = cv::imread(RtabmapImage(i));
       ASSERT_FALSE(image.empty()) << RtabmapImage(i);
@@ -90,27 +91,34 @@ QueryOptions Unverified() {
 // The verify stage skips candidates that cannot reach the top k (fewer
 // matches than the k-th best inlier count): the ranked list is the one that
 // verifying every candidate gives, on one thread or four, for every query.
+// With the whole-image channel scoring too (the bound is then matches plus
+// the bonus).
 TEST_F(QueryTest, SkippedVerificationsNeverChangeTheRankedList) {
   ThreadPool pool(4);
   size_t skipped = 0;
   for (int q = 41; q <= 84; ++q) {
     for (const int top_k : {1, 3, 5}) {
-      QueryOptions all;
-      all.top_k = 10;  // = verify.num_candidates: nothing can be skipped
-      const QueryResult every = QueryDatabase(*db_, Features(q), all);
-      QueryOptions options;
-      options.top_k = top_k;
-      QueryContext threaded;
-      threaded.pool = &pool;
-      for (const QueryResult& r : {QueryDatabase(*db_, Features(q), options),
-                                   QueryDatabase(*db_, Features(q), options, threaded)}) {
-        const size_t n = std::min<size_t>(top_k, every.ranked.size());
-        ASSERT_EQ(r.ranked.size(), n) << "query " << q << " top " << top_k;
-        for (size_t i = 0; i < n; ++i)
-          EXPECT_EQ(r.ranked[i], every.ranked[i]) << "query " << q << " top " << top_k << " #" << i;
-        EXPECT_EQ(r.matched, every.matched) << "query " << q;
-        EXPECT_LE(r.num_verified, every.num_verified);
-        skipped += every.num_verified - r.num_verified;
+      for (const double weight : {0.0, 10.0}) {
+        QueryOptions all;
+        all.top_k = 10;  // = verify.num_candidates: nothing can be skipped
+        all.whole_image_weight = weight;
+        const QueryResult every = QueryDatabase(*db_, Features(q), all);
+        QueryOptions options;
+        options.top_k = top_k;
+        options.whole_image_weight = weight;
+        QueryContext threaded;
+        threaded.pool = &pool;
+        for (const QueryResult& r : {QueryDatabase(*db_, Features(q), options),
+                                     QueryDatabase(*db_, Features(q), options, threaded)}) {
+          const size_t n = std::min<size_t>(top_k, every.ranked.size());
+          ASSERT_EQ(r.ranked.size(), n) << "query " << q << " top " << top_k;
+          for (size_t i = 0; i < n; ++i)
+            EXPECT_EQ(r.ranked[i], every.ranked[i])
+                << "query " << q << " top " << top_k << " #" << i;
+          EXPECT_EQ(r.matched, every.matched) << "query " << q;
+          EXPECT_LE(r.num_verified, every.num_verified);
+          skipped += every.num_verified - r.num_verified;
+        }
       }
     }
   }
@@ -248,39 +256,82 @@ TEST_F(QueryTest, MultiThreadedEqualsSingleThreaded) {
 // just its keyframes, merge into exactly the whole database's answer.
 TEST_F(QueryTest, MergedPartitionsEqualTheWholeDatabase) {
   int compared = 0;
-  for (const bool verify : {true, false}) {
-    QueryOptions options;
-    options.verify.enabled = verify;
-    options.verify.num_candidates = 6;
-    options.top_k = 4;
-    for (int q : {41, 46, 52, 63, 70, 81}) {
-      const QueryResult whole = QueryDatabase(*db_, Features(q), options);
-      for (const PartitionScheme scheme :
-           {PartitionScheme::kContiguous, PartitionScheme::kInterleaved}) {
-        for (int parts = 2; parts <= 5; ++parts) {
-          std::vector<QueryResult> partial;
-          for (int p = 0; p < parts; ++p) {
-            std::vector<uint32_t> among;
-            for (uint32_t i = 0; i < db_->size(); ++i) {
-              if (InPartition(i, db_->size(), p, parts, scheme)) among.push_back(i);
+  for (const bool verify : {true, false})
+    for (const double weight : {0.0, 10.0}) {
+      QueryOptions options;
+      options.whole_image_weight = weight;
+      options.verify.enabled = verify;
+      options.verify.num_candidates = 6;
+      options.top_k = 4;
+      for (int q : {41, 46, 52, 63, 70, 81}) {
+        const QueryResult whole = QueryDatabase(*db_, Features(q), options);
+        for (const PartitionScheme scheme :
+             {PartitionScheme::kContiguous, PartitionScheme::kInterleaved}) {
+          for (int parts = 2; parts <= 5; ++parts) {
+            std::vector<QueryResult> partial;
+            for (int p = 0; p < parts; ++p) {
+              std::vector<uint32_t> among;
+              for (uint32_t i = 0; i < db_->size(); ++i) {
+                if (InPartition(i, db_->size(), p, parts, scheme)) among.push_back(i);
+              }
+              QueryContext context;
+              context.among = &among;
+              partial.push_back(QueryDatabase(*db_, Features(q), options.ForPartition(), context));
+              EXPECT_EQ(partial.back().num_keyframes, among.size());
             }
-            QueryContext context;
-            context.among = &among;
-            partial.push_back(QueryDatabase(*db_, Features(q), options.ForPartition(), context));
-            EXPECT_EQ(partial.back().num_keyframes, among.size());
+            const QueryResult merged = MergeQueryResults(partial, options);
+            EXPECT_EQ(merged.ranked, whole.ranked)
+                << "query " << q << ", " << parts << " parts, verify " << verify;
+            EXPECT_EQ(merged.matched, whole.matched);
+            EXPECT_EQ(merged.num_keyframes, 40u);
+            EXPECT_EQ(merged.num_examined, 40u);
+            ++compared;
           }
-          const QueryResult merged = MergeQueryResults(partial, options);
-          EXPECT_EQ(merged.ranked, whole.ranked)
-              << "query " << q << ", " << parts << " parts, verify " << verify;
-          EXPECT_EQ(merged.matched, whole.matched);
-          EXPECT_EQ(merged.num_keyframes, 40u);
-          EXPECT_EQ(merged.num_examined, 40u);
-          ++compared;
         }
       }
     }
+  EXPECT_EQ(compared, 2 * 2 * 6 * 2 * 4);
+}
+
+// The whole-image channel: each ranked keyframe carries its similarity and
+// its score adds weight x max(0, similarity); a featureless query is still
+// ranked by it; features without a descriptor (from elsewhere) leave it out;
+// a descriptor of the wrong size is refused.
+TEST_F(QueryTest, TheWholeImageChannelScoresByItsRule) {
+  QueryOptions options;
+  options.whole_image_weight = 10.0;
+  const QueryResult r = QueryDatabase(*db_, Features(42), options);
+  ASSERT_FALSE(r.ranked.empty());
+  const cv::Mat& q = Features(42).whole_image;
+  ASSERT_EQ(q.cols, db_->whole_image_dims());
+  for (const RankedKeyframe& k : r.ranked) {
+    ASSERT_TRUE(k.whole_image.has_value());
+    const double s = WholeImageSimilarity(q.ptr<int8_t>(), db_->WholeImage(k.keyframe_id - 1),
+                                          db_->whole_image_dims());
+    EXPECT_NEAR(*k.whole_image, s, 1e-5);
+    EXPECT_DOUBLE_EQ(k.score, k.num_inliers + 10.0 * std::max(0.0, *k.whole_image));
   }
-  EXPECT_EQ(compared, 2 * 6 * 2 * 4);
+  // Weight 0 (the default): no similarity is computed.
+  for (const RankedKeyframe& k : QueryDatabase(*db_, Features(42), QueryOptions()).ranked)
+    EXPECT_FALSE(k.whole_image.has_value());
+  // No features at all, only the thumbnail: ranked by it.
+  FeatureSet thumb = Features(42);
+  thumb.keypoints.clear();
+  thumb.descriptors = cv::Mat(0, 32, CV_8U);
+  const QueryResult by_thumb = QueryDatabase(*db_, thumb, options);
+  ASSERT_FALSE(by_thumb.ranked.empty());
+  for (size_t i = 1; i < by_thumb.ranked.size(); ++i)
+    EXPECT_GE(*by_thumb.ranked[i - 1].whole_image, *by_thumb.ranked[i].whole_image);
+  FeatureSet bare = Features(42);
+  bare.whole_image = cv::Mat();
+  for (const RankedKeyframe& k : QueryDatabase(*db_, bare, options).ranked)
+    EXPECT_FALSE(k.whole_image.has_value());
+  FeatureSet wrong = Features(42);
+  wrong.whole_image = cv::Mat(1, 7, CV_8S, cv::Scalar(1));
+  EXPECT_THROW(QueryDatabase(*db_, wrong, options), InvalidArgument);
+  wrong.whole_image = Features(42).whole_image.clone();
+  wrong.whole_image.at<int8_t>(0, 3) = -128;
+  EXPECT_THROW(QueryDatabase(*db_, wrong, options), InvalidArgument);
 }
 
 // A keyframe in two parts, or verified entries merged with verification off,

@@ -13,7 +13,7 @@ bool RankedKeyframe::operator==(const RankedKeyframe& o) const {
                                     pose->rotation.coeffs() == o.pose->rotation.coeffs()));
   return keyframe_id == o.keyframe_id && score == o.score && num_matches == o.num_matches &&
          num_inliers == o.num_inliers && same_pose && timestamp == o.timestamp &&
-         source == o.source && stored_image == o.stored_image;
+         source == o.source && stored_image == o.stored_image && whole_image == o.whole_image;
 }
 
 bool SequenceEvidence::operator==(const SequenceEvidence& o) const {
@@ -74,16 +74,28 @@ RankedKeyframe RankedFromJson(const JsonReader& j) {
   r.source = j.String("source");
   r.stored_image = j.String("stored_image");
   if (r.num_inliers > r.num_matches) j.Fail("num_inliers", "exceeds num_matches");
+  // Absent in results of earlier versions; null without the channel.
+  if (j.Has("whole_image") && !j.Member("whole_image").is_null()) {
+    const double w = j.Number("whole_image");
+    if (w < -1.0 || w > 1.0) j.Fail("whole_image", "is not in [-1, 1]");
+    r.whole_image = w;
+  }
   return r;
 }
 
 }  // namespace
 
 void to_json(nlohmann::json& j, const RankedKeyframe& r) {
-  j = {
-      {"keyframe_id", r.keyframe_id}, {"score", r.score},         {"num_matches", r.num_matches},
-      {"num_inliers", r.num_inliers}, {"verified", r.verified()}, {"pose", PoseToJson(r.pose)},
-      {"timestamp", r.timestamp},     {"source", r.source},       {"stored_image", r.stored_image}};
+  j = {{"keyframe_id", r.keyframe_id},
+       {"score", r.score},
+       {"num_matches", r.num_matches},
+       {"num_inliers", r.num_inliers},
+       {"verified", r.verified()},
+       {"pose", PoseToJson(r.pose)},
+       {"timestamp", r.timestamp},
+       {"source", r.source},
+       {"stored_image", r.stored_image},
+       {"whole_image", r.whole_image ? nlohmann::json(*r.whole_image) : nlohmann::json(nullptr)}};
 }
 
 void from_json(const nlohmann::json& j, RankedKeyframe& r) {

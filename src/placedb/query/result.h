@@ -56,6 +56,17 @@ struct QueryOptions {
   double deadline_ms = 0.0;
   // For cluster search: where the robot probably is. Default none.
   QueryPrior prior;
+  // The whole-image channel (databases that have it, queries from images):
+  // a keyframe's score is its local-feature score (inliers, or matches when
+  // unverified) plus whole_image_weight x max(0, similarity), and the match
+  // stage keeps keyframes by matches plus the same bonus. Range [0, 10000].
+  // Default 0 (the channel does not score), chosen by the README's
+  // measurements on data/: on hand-held views of a loop it lowers recall.
+  double whole_image_weight = 0.0;
+  // Retrieval other than exhaustive also passes on the keyframes most
+  // similar by whole-image descriptor (searched exhaustively: it is tiny).
+  // Range [0, 1000]. Default 0: none.
+  int whole_image_candidates = 0;
 
   // The options' names, defaults, ranges and help (util/option_table.h).
   static const OptionTable<QueryOptions>& Table();
@@ -78,6 +89,10 @@ struct RankedKeyframe {
   double timestamp = -1.0;   // of the keyframe's source frame, -1 when unknown
   std::string source;        // the keyframe's source image
   std::string stored_image;  // its stored PNG (database dir joined), "" when none
+  // The cosine similarity of the query's and the keyframe's whole-image
+  // descriptors (feature/whole_image.h), in [-1, 1], when both have one. The
+  // score then includes whole_image_weight x max(0, whole_image).
+  std::optional<double> whole_image;
 
   bool operator==(const RankedKeyframe& o) const;
 };
