@@ -2,7 +2,8 @@
 # The main job on the sample data shipped in data/: the paper's pipeline on
 # the RTAB-Map loop sequence (database = images 1-40, queries = 41-84, ground
 # truth from data/rtabmap_loop/ground_truth.csv), verification with and
-# without, small cameras, the speed benchmark, and last the paper's
+# without, small cameras, hard places (tiny frames, sequence evidence, the
+# whole-image channel: README.md's table), the speed benchmark, and last the paper's
 # experiments as one command (placedb experiment: feature x crop x resize x
 # verification) with its report, out/demo/experiment/report.html, and the
 # database with poses the README's ROS section runs on. Every
@@ -91,11 +92,36 @@ PY
 done
 
 echo
-echo "== 7. matching speed: placedb vs the paper's OpenCV BFMatcher loop"
+echo "== 7. hard places: tiny frames, sequence evidence and the whole-image channel (database 1-40,"
+echo "   queries 41-84 in order, each frame size for both). The defaults are chosen from this table;"
+echo "   it is written into README.md (\"Hard places\")."
+HARD="$OUT/hard_places"
+mkdir -p "$HARD"
+SIZES="40x30 64x48 80x60 160x120 512x384"
+echo "$SIZES" > "$HARD/sizes.txt"
+for size in $SIZES; do
+  db="$HARD/db_$size"
+  evalq() {
+    "$PLACEDB" eval --db "$1" --images "$DATA/images" --first 41 --frame-size "$size" \
+      --truth "$TRUTH" --all --quiet --sequence "${@:3}" --json "$2" >/dev/null 2>&1
+  }
+  "$PLACEDB" build --images "$DATA/images" --last 40 --frame-size "$size" --out "$db" \
+    --overwrite --quiet >/dev/null 2>&1
+  evalq "$db" "$HARD/$size.json"
+  evalq "$db" "$HARD/$size.len5.json" --sequence-length 5
+  evalq "$db" "$HARD/$size.whole.json" --whole-image-weight 10
+  "$PLACEDB" build --images "$DATA/images" --last 40 --frame-size "$size" --out "$db.fast20" \
+    --upscaled-fast-threshold 0 --overwrite --quiet >/dev/null 2>&1
+  evalq "$db.fast20" "$HARD/$size.fast20.json"
+done
+python3 scripts/hard_places.py "$HARD" --readme README.md
+
+echo
+echo "== 8. matching speed: placedb vs the paper's OpenCV BFMatcher loop"
 "$PLACEDB" bench --db "$OUT/db_orb_1_40" --images "$DATA/images" --first 41 --last 84 \
   --queries 0 --repeat 3 --json "$OUT/bench.json"
 echo
-echo "== 8. the same library from Python: import placedb (built in $BUILD_DIR/python)"
+echo "== 9. the same library from Python: import placedb (built in $BUILD_DIR/python)"
 PYTHONPATH="$BUILD_DIR/python" /usr/bin/python3 - "$OUT/db_orb_chroma" "$DATA" <<'PY'
 import sys
 import placedb
@@ -110,7 +136,7 @@ print(f"evaluate: {e['num_correct']} of {e['num_queries']} correct, recall@1 {e[
 PY
 
 echo
-echo "== 9. the paper's experiments: feature x crop x resize, verification on and off (all 44 queries)"
+echo "== 10. the paper's experiments: feature x crop x resize, verification on and off (all 44 queries)"
 echo "   one command builds the 12 databases, evaluates the 24 settings and writes the report"
 "$PLACEDB" experiment --images "$DATA/images" --db-first 1 --db-last 40 --first 41 --last 84 \
   --truth "$TRUTH" --all --seed 1 --out "$OUT/experiment" --overwrite --quiet > "$OUT/experiment.log"
@@ -136,7 +162,7 @@ tail -n 3 "$OUT/experiment.log"
 /usr/bin/python3 src/placedb/report/check_report.py "$OUT/experiment/report.html" --min-figures 10 \
   --max-height 2400 --screenshot "$OUT/experiment/screenshot.png" | tail -n 2
 echo
-echo "== 10. a database with poses for the ROS nodes (README, \"On ROS\"): the TUM sequence"
+echo "== 11. a database with poses for the ROS nodes (README, \"On ROS\"): the TUM sequence"
 "$PLACEDB" build --tum data/tum_fr3_office_32 --out "$OUT/db_tum_office" --overwrite --quiet
 echo
 echo "demo outputs in $OUT/"
