@@ -1,7 +1,4 @@
 #include "placedb/eval/experiment.h"
-#include "placedb/eval/report_json.h"
-#include "placedb/builder/builder.h"
-#include "placedb/query/query.h"
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -15,17 +12,20 @@
 #include <opencv2/imgcodecs.hpp>
 #include <set>
 
+#include "placedb/builder/builder.h"
 #include "placedb/eval/pictures.h"
+#include "placedb/eval/report_json.h"
 #include "placedb/image/feature_rich_crop.h"
 #include "placedb/image/resize.h"
+#include "placedb/query/query.h"
 #include "placedb/session/place_database.h"
+#include "placedb/session/storage_view.h"
 #include "placedb/util/check.h"
 #include "placedb/util/checksum.h"
 #include "placedb/util/file_io.h"
 #include "placedb/util/json_reader.h"
 #include "placedb/util/option_json.h"
 #include "placedb/util/options.h"
-#include "placedb/session/storage_view.h"
 
 #ifndef PLACEDB_PYTHON
 #define PLACEDB_PYTHON "/usr/bin/python3"
@@ -45,15 +45,17 @@ std::string ExperimentSetting::DatabaseName() const {
 }
 
 std::string ExperimentSetting::Name() const {
-  return DatabaseName() + (verify ? "_verify" : "_noverify");
+  return DatabaseName() + (verify ? "_verify" : "_noverify") + (sequence ? "_seq" : "") +
+         (whole_image ? "_whole" : "");
 }
 
 std::string ExperimentSetting::Label() const {
   std::string feature = FeatureTypeName(features);
   for (char& c : feature) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
-  return fmt::format("{} {} {} {}", feature, CropModeName(crop),
+  return fmt::format("{} {} {} {}{}{}", feature, CropModeName(crop),
                      resize == 1 ? std::string("1") : fmt::format("1/{}", resize),
-                     verify ? "verified" : "unverified");
+                     verify ? "verified" : "unverified", sequence ? " + sequence" : "",
+                     whole_image ? " + whole image" : "");
 }
 
 std::vector<ExperimentSetting> ExperimentOptions::Grid() const {
@@ -61,7 +63,11 @@ std::vector<ExperimentSetting> ExperimentOptions::Grid() const {
   for (const FeatureType f : features) {
     for (const CropMode c : crops) {
       for (const int r : resizes) {
-        for (const bool v : verify) grid.push_back({f, c, r, v});
+        for (const bool v : verify) {
+          for (const bool q : sequence) {
+            for (const bool w : whole_image) grid.push_back({f, c, r, v, q, w});
+          }
+        }
       }
     }
   }
@@ -92,10 +98,20 @@ BuildOptions BuildFor(const ExperimentOptions& o, const ExperimentSetting& s) {
   return b;
 }
 
-QueryOptions QueryFor(const ExperimentOptions& o, bool verify) {
+QueryOptions QueryFor(const ExperimentOptions& o, const ExperimentSetting& s) {
   QueryOptions q = o.query;
-  q.verify.enabled = verify;
+  q.verify.enabled = s.verify;
+  if (s.whole_image) {
+    if (q.whole_image_weight <= 0.0) q.whole_image_weight = ExperimentOptions::kWholeImageWeight;
+  } else {
+    q.whole_image_weight = 0.0;
+  }
   return q;
+}
+
+EvalOptions SettingEval(EvalOptions eval, const ExperimentSetting& s) {
+  eval.sequence = s.sequence;
+  return eval;
 }
 
 nlohmann::json SettingJson(const ExperimentSetting& s) {
@@ -105,7 +121,9 @@ nlohmann::json SettingJson(const ExperimentSetting& s) {
           {"features", FeatureTypeName(s.features)},
           {"crop", CropModeName(s.crop)},
           {"resize", s.resize},
-          {"verify", s.verify}};
+          {"verify", s.verify},
+          {"sequence", s.sequence},
+          {"whole_image", s.whole_image}};
 }
 
 // A JSON file the experiment wrote into its folder: damaged, it is
@@ -300,7 +318,7 @@ class PictureMaker {
         std::find(options_.verify.begin(), options_.verify.end(), true) != options_.verify.end();
     std::vector<ExperimentSetting> out;
     for (const CropMode c : options_.crops)
-      out.push_back({options_.features.front(), c, resize, verify});
+      out.push_back({options_.features.front(), c, resize, verify, false, false});
     return out;
   }
 
@@ -325,7 +343,9 @@ class PictureMaker {
     if (chosen.size() > static_cast<size_t>(options_.num_pictures))
       chosen.resize(options_.num_pictures);
     std::sort(chosen.begin(), chosen.end());
-    const QueryOptions query = QueryFor(options_, true);
+    ExperimentSetting verified;  // the pictures: verification on, neither channel
+    verified.verify = true;
+    const QueryOptions query = QueryFor(options_, verified);
     for (const int id : chosen) {
       const Frame& frame = queries_.at(id);
       const cv::Mat image = LoadFrameImage(frame);
@@ -548,7 +568,7 @@ ExperimentSummary RunExperiment(const ExperimentData& data, const GroundTruth& t
     const PlaceDatabase db = OpenOrBuild(data, options, g.first, out, &build_json);
     for (const ExperimentSetting& s : todo) {
       const EvalReport r =
-          Evaluate(db, data.queries, truth, eval, QueryFor(options, s.verify), false);
+          Evaluate(db, data.queries, truth, SettingEval(eval, s), QueryFor(options, s), false);
       nlohmann::json j = {{"setting", SettingJson(s)},
                           {"num_keyframes", db.size()},
                           {"build", build_json},

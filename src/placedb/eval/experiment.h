@@ -33,6 +33,8 @@ struct ExperimentSetting {
   CropMode crop = CropMode::kNone;
   int resize = 1;
   bool verify = true;
+  bool sequence = false;     // evaluated with sequence evidence (EvalOptions::sequence)
+  bool whole_image = false;  // the whole-image channel scores (QueryOptions::whole_image_weight)
 
   // "orb_chroma_r4": the database this setting queries.
   std::string DatabaseName() const;
@@ -50,6 +52,12 @@ struct ExperimentOptions {
   std::vector<CropMode> crops = {CropMode::kNone, CropMode::kChroma};
   std::vector<int> resizes = {1, 4, 16};
   std::vector<bool> verify = {true, false};
+  // Sequence evidence and the whole-image channel, per setting: off by
+  // default (on: eval with `sequence`; the query's whole_image_weight, or
+  // kWholeImageWeight when it is 0).
+  std::vector<bool> sequence = {false};
+  std::vector<bool> whole_image = {false};
+  static constexpr double kWholeImageWeight = 10.0;
   // Everything else of a build (crop options, extractor settings, PNG level,
   // threads); features.type, crop and resize are set per setting.
   BuildOptions build;

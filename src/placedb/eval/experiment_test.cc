@@ -2,10 +2,9 @@
 
 #include <gtest/gtest.h>
 
-#include <nlohmann/json.hpp>
-
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 
 #include "placedb/dataset/image_folder.h"
 #include "placedb/dataset/match_truth.h"
@@ -101,7 +100,9 @@ TEST(ExperimentTest, RunsTheGridResumesAndRefusesOtherArguments) {
     EXPECT_EQ(these, ids) << "every setting answers the same queries";
   }
   // Resizing shrinks the image store; the chroma crop does too.
-  auto images = [&](int i) { return r["settings"][i]["eval"]["database_bytes"]["images"].get<uint64_t>(); };
+  auto images = [&](int i) {
+    return r["settings"][i]["eval"]["database_bytes"]["images"].get<uint64_t>();
+  };
   EXPECT_LT(images(2), images(0));  // orb_none_r4 < orb_none_r1
   EXPECT_LT(images(4), images(0));  // orb_chroma_r1 < orb_none_r1
   // Pictures: match pictures for both crop modes, crop illustrations.
@@ -147,6 +148,55 @@ TEST(ExperimentTest, RunsTheGridResumesAndRefusesOtherArguments) {
   EXPECT_EQ(fresh.num_reused, 0);
   EXPECT_EQ(fresh.num_settings, 2);
   EXPECT_FALSE(fs::exists(out + "/databases/orb_none_r1"));
+}
+
+// The grid's sequence and whole-image axes: settings of their own on the
+// same database; with sequence evidence the report holds both answers (the
+// frames' own ones equal the setting without it); the whole-image channel
+// scores the answers (every ranked keyframe carries its similarity).
+TEST(ExperimentTest, SequenceAndWholeImageAxes) {
+  ExperimentOptions o = SmallGrid();
+  o.resizes = {1};
+  o.crops = {CropMode::kNone};
+  o.verify = {true};
+  o.sequence = {false, true};
+  o.whole_image = {false, true};
+  o.eval.all = true;
+  ASSERT_EQ(o.Grid().size(), 4u);
+  EXPECT_EQ(o.Grid()[3].Name(), "orb_none_r1_verify_seq_whole");
+  EXPECT_EQ(o.Grid()[3].Label(), "ORB none 1 verified + sequence + whole image");
+  TempDir tmp;
+  const std::string out = tmp.Path("axes");
+  const GroundTruth truth = GroundTruth::FromMatchList(ReadMatchTruth(kTruth));
+  const ExperimentSummary s = RunExperiment(SmallData(), truth, o, out);
+  EXPECT_EQ(s.num_settings, 4);
+  const nlohmann::json r = ReadJson(out + "/results.json");
+  ASSERT_EQ(r["settings"].size(), 4u);
+  std::map<std::string, nlohmann::json> by_name;
+  for (const nlohmann::json& setting : r["settings"])
+    by_name[setting["setting"]["name"].get<std::string>()] = setting;
+  const nlohmann::json& plain = by_name.at("orb_none_r1_verify")["eval"];
+  const nlohmann::json& seq = by_name.at("orb_none_r1_verify_seq")["eval"];
+  const nlohmann::json& whole = by_name.at("orb_none_r1_verify_whole")["eval"];
+  EXPECT_TRUE(plain["single_frame"].is_null());
+  ASSERT_TRUE(seq["single_frame"].is_object());
+  EXPECT_EQ(seq["single_frame"]["num_correct"], plain["num_correct"]);
+  EXPECT_GT(seq["sequence"]["decided"].get<int>(), 0);
+  EXPECT_TRUE(by_name.at("orb_none_r1_verify_seq")["setting"]["sequence"].get<bool>());
+  int with_similarity = 0;
+  for (const nlohmann::json& q : whole["queries"]) {
+    for (const nlohmann::json& k : q["result"]["ranked"])
+      with_similarity += k["whole_image"].is_number();
+  }
+  EXPECT_GT(with_similarity, 0);
+  for (const nlohmann::json& q : plain["queries"]) {
+    for (const nlohmann::json& k : q["result"]["ranked"]) EXPECT_TRUE(k["whole_image"].is_null());
+  }
+  // One database serves the four settings.
+  EXPECT_TRUE(fs::exists(out + "/databases/orb_none_r1"));
+  size_t databases = 0;
+  for (const auto& e : fs::directory_iterator(out + "/databases")) databases += e.is_directory();
+  EXPECT_EQ(databases, 1u);
 }
 
 TEST(ExperimentTest, RefusesBadFoldersAndData) {

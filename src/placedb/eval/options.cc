@@ -96,10 +96,17 @@ int ParseResize(const std::string& text) {
   PLACEDB_THROW_INVALID("`resize` takes 1, 4 and 16 (got '", text, "')");
 }
 std::string ResizeName(int r) { return std::to_string(r); }
-bool ParseVerification(const std::string& text) {
+bool ParseOnOff(const std::string& text, const char* name) {
   if (text == "on") return true;
   if (text == "off") return false;
-  PLACEDB_THROW_INVALID("`verification` takes on and off (got '", text, "')");
+  PLACEDB_THROW_INVALID("`", name, "` takes on and off (got '", text, "')");
+}
+bool ParseVerification(const std::string& text) { return ParseOnOff(text, "verification"); }
+bool ParseSequenceEvidence(const std::string& text) {
+  return ParseOnOff(text, "sequence_evidence");
+}
+bool ParseWholeImageScoring(const std::string& text) {
+  return ParseOnOff(text, "whole_image_scoring");
 }
 const char* VerificationName(bool on) { return on ? "on" : "off"; }
 }  // namespace
@@ -117,6 +124,13 @@ const OptionTable<ExperimentOptions>& ExperimentOptions::Table() {
            "stored-area divisors of the grid", kCallers);
     t.List("verification", PLACEDB_MEMBER(O, verify), {true, false}, ParseVerification,
            VerificationName, "verification of the grid", kCallers);
+    t.List("sequence_evidence", PLACEDB_MEMBER(O, sequence), {true, false}, ParseSequenceEvidence,
+           VerificationName,
+           "sequence evidence of the grid (on: queries in order, answered with `sequence_*`)",
+           kCallers);
+    t.List("whole_image_scoring", PLACEDB_MEMBER(O, whole_image), {true, false},
+           ParseWholeImageScoring, VerificationName,
+           "whole-image channel of the grid (on: `whole_image_weight`, 10 when it is 0)", kCallers);
     // Everything else of a build and a query; the grid sets the feature type,
     // crop, resize and verification, the experiment its own folder and
     // progress, and a prior means nothing for random queries.
@@ -127,10 +141,7 @@ const OptionTable<ExperimentOptions>& ExperimentOptions::Table() {
             "progress", "overwrite"});
     t.Nest(PLACEDB_MEMBER(O, query), QueryOptions::Table(), kCallers,
            {"verify", "prior_keyframe", "prior_pose"});
-    t.Nest(PLACEDB_MEMBER(O, eval), EvalOptions::Table(), kCallers,
-           {"sequence", "progress", "sequence_length", "sequence_min_length",
-            "sequence_min_velocity", "sequence_max_velocity", "sequence_velocity_steps",
-            "sequence_match_weight", "sequence_min_score"});
+    t.Nest(PLACEDB_MEMBER(O, eval), EvalOptions::Table(), kCallers, {"sequence", "progress"});
     t.Number("pictures", PLACEDB_MEMBER(O, num_pictures), OptionRange::Closed(0, 20),
              "queries drawn as match pictures, cropped vs uncropped", kCallers);
     t.Number("failures", PLACEDB_MEMBER(O, num_failures), OptionRange::Closed(0, 100),

@@ -72,7 +72,8 @@ def load(out):
 
 def short(st):
     r = "1" if st["resize"] == 1 else f"1/{st['resize']}"
-    return f"{st['features'].upper()} {st['crop']} {r}" + (" V" if st["verify"] else "")
+    return (f"{st['features'].upper()} {st['crop']} {r}" + (" V" if st["verify"] else "")
+            + (" S" if st.get("sequence") else "") + (" W" if st.get("whole_image") else ""))
 
 
 def save(fig, out, name):
@@ -83,12 +84,23 @@ def save(fig, out, name):
     return path
 
 
+def series_key(st):
+    """A bar series: feature x verification x sequence x whole image."""
+    return (st["features"], st["verify"], st.get("sequence", False), st.get("whole_image", False))
+
+
+def series_label(key):
+    feature, verify, sequence, whole = key
+    return (f"{feature.upper()}, verification {'on' if verify else 'off'}"
+            + (", sequence" if sequence else "") + (", whole image" if whole else ""))
+
+
 def bar_groups(settings):
-    """x groups: crop x resize in grid order; series: feature x verify."""
+    """x groups: crop x resize in grid order; series: series_key."""
     groups, series = [], []
     for s in settings:
         st = s["setting"]
-        g, k = (st["crop"], st["resize"]), (st["features"], st["verify"])
+        g, k = (st["crop"], st["resize"]), series_key(st)
         if g not in groups:
             groups.append(g)
         if k not in series:
@@ -99,19 +111,21 @@ def bar_groups(settings):
 def grouped_bars(ax, settings, value, ylabel, fmt="{:.2f}"):
     groups, series = bar_groups(settings)
     width = 0.8 / max(1, len(series))
-    lookup = {((s["setting"]["crop"], s["setting"]["resize"]),
-               (s["setting"]["features"], s["setting"]["verify"])): s for s in settings}
-    for j, (feature, verify) in enumerate(series):
+    lookup = {((s["setting"]["crop"], s["setting"]["resize"]), series_key(s["setting"])): s
+              for s in settings}
+    for j, key in enumerate(series):
+        feature, verify, sequence, whole = key
         xs, ys = [], []
         for i, g in enumerate(groups):
-            s = lookup.get((g, (feature, verify)))
+            s = lookup.get((g, key))
             if s is None:
                 continue
             xs.append(i + (j - (len(series) - 1) / 2) * width)
             ys.append(value(s))
         bars = ax.bar(xs, ys, width * 0.95, color=FEATURE_COLORS.get(feature, "#777"),
-                      alpha=1.0 if verify else 0.55, hatch="" if verify else "//",
-                      edgecolor="white", label=f"{feature.upper()}, verification {'on' if verify else 'off'}")
+                      alpha=1.0 if verify else 0.55,
+                      hatch=("" if verify else "//") + ("o" if sequence else "") + ("." if whole else ""),
+                      edgecolor="white", label=series_label(key))
         crowded = len(series) > 2
         for x, y in zip(xs, ys):
             ax.annotate(fmt.format(y), (x, y), ha="center", va="bottom", fontsize=6 if crowded else 7,
@@ -131,12 +145,12 @@ def fig_time(settings, out):
     for s in settings:
         st = s["setting"]
         if st["crop"] == "none" and st["resize"] == 1:
-            base[(st["features"], st["verify"])] = s["eval"]["latency_ms"]["mean"]
+            base[series_key(st)] = s["eval"]["latency_ms"]["mean"]
     fallback = max(s["eval"]["latency_ms"]["mean"] for s in settings) or 1.0
 
     def normalised(s):
         st = s["setting"]
-        b = base.get((st["features"], st["verify"]), fallback) or 1.0
+        b = base.get(series_key(st), fallback) or 1.0
         return s["eval"]["latency_ms"]["mean"] / b
 
     fig, axes = plt.subplots(1, 2, figsize=(13, 4.2))
