@@ -121,7 +121,11 @@ def scale_table(j):
                          else f", {guided} matched after guided ranking")
             if m["deadline_ms"] > 0:
                 name += f", deadline {m['deadline_ms']:g} ms"
-            if m["mode"] == "exhaustive":
+            whole = m.get("whole_image_weight", 0) > 0
+            if whole:
+                name += f" + whole image (weight {m['whole_image_weight']:g}"
+                name += f", {m['whole_image_candidates']} candidates)" if m["mode"] != "exhaustive" else ")"
+            if "vs_popcount_limit" in m:
                 vs = f"{m['vs_popcount_limit']:.2f}× the popcount limit"
             elif "recall_points_vs_exhaustive" in m:
                 vs = (f"{m['recall_points_vs_exhaustive']:+.1f} / {m['place_recall_points_vs_exhaustive']:+.1f} "
@@ -139,6 +143,17 @@ def scale_table(j):
                 if full and full[0]["examined_mean"] > 0:
                     st = full[0]["stage_ms_mean"]
                     vs += f" (one candidate's match + verify: {(st['match'] + st['verify']) / full[0]['examined_mean']:.2f} ms)"
+            if whole:
+                # What the channel adds: the same mode without it, same size.
+                plain = [b for b in s["modes"] if b["mode"] == m["mode"] and b["deadline_ms"] == 0
+                         and b.get("guided_candidates", 0) == m.get("guided_candidates", 0)
+                         and b.get("whole_image_weight", 0) == 0]
+                if plain:
+                    b = plain[0]
+                    vs += (f"; vs {m['mode']} without it: recall@1 "
+                           f"{100 * (m['recall_at_1'] - b['recall_at_1']):+.1f} points, p50 "
+                           f"{m['latency_ms']['p50'] - b['latency_ms']['p50']:+.2f} ms, p99 "
+                           f"{m['latency_ms']['p99'] - b['latency_ms']['p99']:+.2f} ms")
             rows.append(f"| {s['keyframes']} | {name} | {m['queries']} | {m['latency_ms']['p50']:.2f} | "
                         f"{m['latency_ms']['p99']:.2f} | {m['recall_at_1']:.3f} | {m['place_recall_at_1']:.3f} | "
                         f"{m['examined_mean']:.0f} | {vs} |")
