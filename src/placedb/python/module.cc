@@ -616,6 +616,9 @@ PYBIND11_MODULE(placedb, m) {
       .def_readonly("source", &RankedKeyframe::source, "the keyframe's source image")
       .def_readonly("stored_image", &RankedKeyframe::stored_image,
                     "its stored PNG (database directory joined); '' when none")
+      .def_readonly("whole_image", &RankedKeyframe::whole_image,
+                    "cosine similarity of the whole-image descriptors, in [-1, 1], when the query "
+                    "scored the channel (whole_image_weight > 0); None otherwise")
       .def(
           "to_dict", [](const RankedKeyframe& k) { return FromJsonText(RankedKeyframeToJson(k)); },
           "The library's JSON of this entry, as a dict.")

@@ -211,6 +211,20 @@ class PlaceDbTest(unittest.TestCase):
         with self.assertRaises(TypeError):
             placedb.SequenceMatcher(self.db, sequence_lenght=3)
 
+    def test_whole_image_channel(self):
+        self.assertEqual(self.db.whole_image_dims, 768)
+        plain = self.db.query(self.image5)
+        self.assertIsNone(plain.ranked[0].whole_image)
+        r = self.db.query(self.image5, whole_image_weight=10)
+        self.assertEqual(r.best.keyframe_id, 5)
+        for k in r.ranked:
+            self.assertIsNotNone(k.whole_image)
+            self.assertLessEqual(abs(k.whole_image), 1.0)
+            expected = (k.num_inliers if k.verified else k.num_matches) + 10 * max(0.0, k.whole_image)
+            self.assertAlmostEqual(k.score, expected, places=9)
+        self.assertGreater(r.ranked[0].whole_image, 0.99)  # the keyframe's own image
+        self.assertEqual(r.to_dict()["ranked"][0]["whole_image"], r.ranked[0].whole_image)
+
     def test_other_layouts_give_the_same_answer(self):
         im = self.image5
         ref = ranking(self.db.query(im))
