@@ -373,11 +373,13 @@ Examination ExamineTimed(const Database& db, const GroupedFeatures& grouped,
 // the database has the channel and the query a descriptor of its size (a
 // query from an image; features from elsewhere carry none).
 WholeImageScores ScoreWholeImages(const Database& db, const FeatureSet& query,
-                                  const QueryOptions& options) {
+                                  const QueryOptions& options, bool exhaustive) {
   WholeImageScores s;
   const int dims = db.whole_image_dims();
   if (dims <= 0 || query.whole_image.empty() || db.size() == 0) return s;
-  if (options.whole_image_weight <= 0.0 && options.whole_image_candidates <= 0) return s;
+  // Needed to score, or to add candidates to a search that is not exhaustive.
+  if (options.whole_image_weight <= 0.0 && (exhaustive || options.whole_image_candidates <= 0))
+    return s;
   s.similarity.resize(db.size());
   WholeImageSimilarities(query.whole_image.ptr<int8_t>(), db.WholeImageData(), db.size(), dims,
                          s.similarity.data());
@@ -391,26 +393,36 @@ void AddWholeImageCandidates(const WholeImageScores& whole, const QueryOptions& 
                              std::vector<Candidate>* candidates) {
   const size_t m = static_cast<size_t>(options.whole_image_candidates);
   if (m == 0) return;
-  std::vector<uint32_t> pool;
+  // The best m in one pass: a min-heap on (similarity, then the higher index
+  // first out), no copy of the restriction.
+  const auto worse = [&](uint32_t a, uint32_t b) {  // a ranks after b
+    const float sa = whole.similarity[a], sb = whole.similarity[b];
+    return sa != sb ? sa < sb : a > b;
+  };
+  const auto heap_order = [&](uint32_t a, uint32_t b) { return worse(b, a); };
+  std::vector<uint32_t> best;
+  best.reserve(m + 1);
   const auto consider = [&](uint32_t i) {
-    if (excluded == nullptr || excluded[i] == 0) pool.push_back(i);
+    if (excluded != nullptr && excluded[i] != 0) return;
+    if (best.size() < m) {
+      best.push_back(i);
+      std::push_heap(best.begin(), best.end(), heap_order);
+    } else if (worse(best.front(), i)) {
+      std::pop_heap(best.begin(), best.end(), heap_order);
+      best.back() = i;
+      std::push_heap(best.begin(), best.end(), heap_order);
+    }
   };
   if (among != nullptr) {
     for (const uint32_t i : *among) consider(i);
   } else {
     for (uint32_t i = 0; i < whole.similarity.size(); ++i) consider(i);
   }
-  const auto more_similar = [&](uint32_t a, uint32_t b) {
-    const float sa = whole.similarity[a], sb = whole.similarity[b];
-    return sa != sb ? sa > sb : a < b;
-  };
-  const size_t take = std::min(m, pool.size());
-  std::partial_sort(pool.begin(), pool.begin() + static_cast<ptrdiff_t>(take), pool.end(),
-                    more_similar);
+  std::sort(best.begin(), best.end(), [&](uint32_t a, uint32_t b) { return worse(b, a); });
   std::unordered_set<uint32_t> have;
   for (const Candidate& c : *candidates) have.insert(c.index);
-  for (size_t i = 0; i < take; ++i) {
-    if (have.insert(pool[i]).second) candidates->push_back({pool[i], whole.similarity[pool[i]]});
+  for (const uint32_t i : best) {
+    if (have.insert(i).second) candidates->push_back({i, whole.similarity[i]});
   }
 }
 
@@ -447,8 +459,9 @@ QueryResult RunStages(const Database& db, const FeatureSet& query, const QueryOp
                          : Deadline();
   std::vector<Candidate> candidates =
       retriever.Retrieve(db, query, among, excluded, retrieve_deadline, &retrieve_stopped);
-  const WholeImageScores whole = ScoreWholeImages(db, query, options);
-  if (!whole.similarity.empty() && retriever.method() != RetrievalMethod::kExhaustive)
+  const bool exhaustive = retriever.method() == RetrievalMethod::kExhaustive;
+  const WholeImageScores whole = ScoreWholeImages(db, query, options, exhaustive);
+  if (!whole.similarity.empty() && !exhaustive)
     AddWholeImageCandidates(whole, options, among, excluded, &candidates);
   result.times.retrieve_ms = stage.ElapsedMs();
 

@@ -1,7 +1,5 @@
 // The retrieve stage's methods through a session: bag-of-words search,
 // cluster search with its fallback, and the deadline.
-#include "placedb/retrieval/retriever.h"
-
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -10,14 +8,16 @@
 #include <opencv2/imgcodecs.hpp>
 #include <set>
 
+#include "placedb/builder/builder.h"
 #include "placedb/dataset/image_folder.h"
 #include "placedb/dataset/match_truth.h"
-#include "placedb/retrieval/clusters.h"
-#include "placedb/builder/builder.h"
+#include "placedb/feature/whole_image.h"
 #include "placedb/query/query.h"
+#include "placedb/retrieval/clusters.h"
+#include "placedb/retrieval/retriever.h"
 #include "placedb/session/place_database.h"
-#include "placedb/util/testing.h"
 #include "placedb/session/storage_view.h"
+#include "placedb/util/testing.h"
 
 namespace placedb {
 namespace {
@@ -106,6 +106,51 @@ TEST_F(SearchTest, BowFindsWhatExhaustiveSearchFinds) {
   bow.retrieval.guided_candidates = 0;
   const QueryResult all = db.Query(Features(42), bow);
   EXPECT_EQ(all.ranked, db.Query(Features(42), exhaustive).ranked);
+}
+
+// whole_image_candidates: bag-of-words search also matches the keyframes
+// most similar by thumbnail (exactly those, by similarity), and not when the
+// restriction (a partition) excludes them; exhaustive search is unchanged.
+TEST_F(SearchTest, WholeImageCandidatesJoinBagOfWords) {
+  const PlaceDatabase db = PlaceDatabase::Open(Dir());
+  ASSERT_EQ(db.whole_image_dims(), 768);
+  QueryOptions bow;
+  bow.retrieval.method = RetrievalMethod::kBow;
+  bow.retrieval.bow_candidates = 3;
+  bow.retrieval.guided_candidates = 0;  // every candidate matched in full
+  bow.min_matches = 1;
+  bow.top_k = 40;
+  bow.verify.num_candidates = 40;
+  const int id = 63;
+  const QueryResult without = db.Query(Features(id), bow);
+  QueryOptions with = bow;
+  with.whole_image_candidates = 4;
+  with.whole_image_weight = 1e-9;  // to see every similarity in the answer
+  const QueryResult r = db.Query(Features(id), with);
+  EXPECT_GT(r.num_examined, without.num_examined);
+  EXPECT_LE(r.num_examined, without.num_examined + 4);
+  // The 4 most similar keyframes, by brute force over the thumbnails.
+  const cv::Mat& q = Features(id).whole_image;
+  std::vector<std::pair<double, int32_t>> all;
+  {
+    const StorageView view(db);
+    const Database& d = view.database();
+    for (size_t i = 0; i < d.size(); ++i) {
+      all.emplace_back(WholeImageSimilarity(q.ptr<int8_t>(), d.WholeImage(i), d.whole_image_dims()),
+                       d.keyframe(i).id);
+    }
+  }
+  std::sort(all.begin(), all.end(), [](const auto& a, const auto& b) {
+    return a.first != b.first ? a.first > b.first : a.second < b.second;
+  });
+  std::set<int32_t> ranked;
+  for (const RankedKeyframe& k : r.ranked) ranked.insert(k.keyframe_id);
+  for (size_t i = 0; i < 4; ++i) EXPECT_EQ(ranked.count(all[i].second), 1u) << all[i].second;
+  // Exhaustive search is the same with or without candidates.
+  QueryOptions exhaustive, exhaustive_with;
+  exhaustive_with.whole_image_candidates = 4;
+  EXPECT_EQ(db.Query(Features(id), exhaustive).ranked,
+            db.Query(Features(id), exhaustive_with).ranked);
 }
 
 // Scoring a few keyframes one by one gives the inverted file's scores.
