@@ -79,7 +79,8 @@ const OptionTable<ExtractorOptions>& ExtractorOptions::Table() {
              "(0: never)");
     t.Number("upscaled_fast_threshold", PLACEDB_MEMBER(O, upscaled_fast_threshold),
              OptionRange::Closed(0, 255),
-             "small frames: ORB's FAST threshold on the upscaled images (0: orb_fast_threshold)")
+             "small frames: ORB's FAST threshold on images upscaled 2x or more (0: "
+             "orb_fast_threshold)")
         .absent = int64_t{0};
     t.Nest(PLACEDB_MEMBER(O, whole_image), WholeImageOptions::Table());
     return t;

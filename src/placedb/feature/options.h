@@ -63,9 +63,11 @@ struct ExtractorOptions {
   // [0, 4096]. Default 240 (measured on data/rtabmap_loop shrunk to 160x120:
   // recall@1 0.909 without, 0.977 with; 320x240 frames are not upscaled).
   int upscale_below = 240;
-  // ORB's FAST threshold for the frames upscaled above: an upscaled tiny
-  // frame is blurred, and the library's 20 finds few corners in it. 0: the
-  // same as orb.fast_threshold. Range [0, 255]. Default 5 (measured on
+  // ORB's FAST threshold for the frames upscaled above by 2x or more (a
+  // shorter side at most upscale_below / 2): an upscaled tiny frame is
+  // blurred, and the library's 20 finds few corners in it. (Frames upscaled
+  // less keep orb.fast_threshold: stored images of 1/4 the area did worse
+  // with it.) 0: the same as orb.fast_threshold. Range [0, 255]. Default 5 (measured on
   // data/rtabmap_loop read at 40x30: recall@1 0.841 with 20, 0.909 with 5;
   // at 64x48 0.932 -> 0.955, at 80x60 0.932 -> 0.977, 160x120 unchanged;
   // frames of 240 px and more are not upscaled). Manifests without the key
