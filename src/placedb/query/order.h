@@ -31,6 +31,11 @@ inline double MatchKey(const RankedKeyframe& r, const QueryOptions& options) {
   return r.num_matches + WholeImageBonus(r.whole_image, options);
 }
 
+// A verified keyframe's score: its inliers plus the whole-image bonus.
+inline double VerifiedScore(const RankedKeyframe& r, const QueryOptions& options) {
+  return r.num_inliers + WholeImageBonus(r.whole_image, options);
+}
+
 // Match-stage order on keys: the larger first, then the lower id.
 inline bool MoreEvidence(int32_t id_a, double a, int32_t id_b, double b) {
   return a != b ? a > b : id_a < id_b;

@@ -242,7 +242,7 @@ Examination ExamineAll(const Database& db, const GroupedFeatures& grouped,
     if (!options.verify.enabled) return;
     ranked[i].num_inliers =
         VerifyKeyframe(db, best[i].index, grouped.set, best[i].matches, options.verify).num_inliers;
-    ranked[i].score = ranked[i].num_inliers + WholeImageBonus(ranked[i].whole_image, options);
+    ranked[i].score = VerifiedScore(ranked[i], options);
   };
   const auto fill_range = [&](size_t first, size_t last) {
     if (first < last) ForEach(context.pool, last - first, [&](size_t i) { fill(first + i); });
@@ -342,7 +342,7 @@ Examination ExamineTimed(const Database& db, const GroupedFeatures& grouped,
             Timer v;
             k.r.num_inliers =
                 VerifyKeyframe(db, index, grouped.set, k.e.matches, options.verify).num_inliers;
-            k.r.score = k.r.num_inliers + WholeImageBonus(k.r.whole_image, options);
+            k.r.score = VerifiedScore(k.r, options);
             k.e.matches.clear();  // not needed any more
             verified_ms = v.ElapsedMs();
           }
