@@ -2,8 +2,14 @@
 // of 1k, 10k and 100k keyframes made from the sample images by augmentation
 // (eval/augment.h), and for each size, in one run:
 //  - build time, database bytes (every file of the directory), open time
-//    (PlaceDatabase::Open, the best of 3) and resident memory after opening
-//    (VmRSS, and its increase over the process before the open);
+//    (PlaceDatabase::Open) with a cold page cache (every file of the
+//    database dropped from it with posix_fadvise(POSIX_FADV_DONTNEED), which
+//    needs no privilege) and warm (the best of 3 more), and the resident
+//    memory the open adds, two ways: private (RssAnon: the heap) and
+//    file-backed (RssFile: pages of the mapped files read so far);
+//  - the same memory after the runs below, and at the largest size after
+//    --memory-queries more bag-of-words queries (fresh augmentations, spread
+//    over the database), and the time `placedb verify` takes (every byte);
 //  - per search mode (exhaustive, bow, cluster) the query latency p50 / p99
 //    on one thread, excluding feature extraction (the query's features are
 //    extracted once with Extract, then Query(features) is timed; OpenCV on
@@ -40,8 +46,10 @@
 // Databases are written under --out (scale_<n>/) and reused when their
 // manifest shows the same settings, source description and counts.
 // Prints a table and writes JSON (--json) for the README's table.
+#include <fcntl.h>
 #include <fmt/format.h>
 #include <malloc.h>
+#include <unistd.h>
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
@@ -53,11 +61,11 @@
 #include <random>
 #include <thread>
 
+#include "placedb/builder/builder.h"
 #include "placedb/eval/augment.h"
 #include "placedb/eval/metrics.h"
-#include "placedb/builder/builder.h"
-#include "placedb/session/place_database.h"
 #include "placedb/match/hamming.h"
+#include "placedb/session/place_database.h"
 #include "placedb/util/check.h"
 #include "placedb/util/timer.h"
 
@@ -82,6 +90,35 @@ double StatusMib(const std::string& field) {
     if (line.rfind(field + ":", 0) == 0) return std::stod(line.substr(field.size() + 1)) / 1024.0;
   }
   return 0.0;
+}
+
+// Resident memory of this process, MiB: private (the heap, RssAnon) and
+// file-backed (mapped file pages, RssFile).
+struct Resident {
+  double anon = 0.0, file = 0.0;
+};
+Resident ResidentNow() { return {StatusMib("RssAnon"), StatusMib("RssFile")}; }
+nlohmann::json ResidentJson(const Resident& r) {
+  return {{"private_mib", r.anon}, {"file_mib", r.file}};
+}
+
+// Drops every file of `dir` from the page cache (written back first), so
+// that the next open reads them from the disk. False when the kernel
+// refused for some file.
+bool DropFromPageCache(const fs::path& dir) {
+  bool ok = true;
+  for (const auto& e : fs::recursive_directory_iterator(dir)) {
+    if (!e.is_regular_file()) continue;
+    const int fd = ::open(e.path().c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) {
+      ok = false;
+      continue;
+    }
+    ok = ::fdatasync(fd) == 0 && ok;
+    ok = ::posix_fadvise(fd, 0, 0, POSIX_FADV_DONTNEED) == 0 && ok;
+    ::close(fd);
+  }
+  return ok;
 }
 
 uint64_t DirectoryBytes(const fs::path& dir) {
@@ -165,7 +202,7 @@ struct Query {
 struct ModeRun {
   std::string mode;
   double deadline_ms = 0.0;
-  int guided_candidates = 0;    // bow and cluster: matched in full after guided ranking; 0: all
+  int guided_candidates = 0;        // bow and cluster: matched in full after guided ranking; 0: all
   double whole_image_weight = 0.0;  // the whole-image channel's (0: off)
   int whole_image_candidates = 0;
   std::vector<size_t> queries;  // indices into the query list
@@ -271,7 +308,7 @@ int main(int argc, char** argv) {
   int guided_candidates = placedb::RetrievalOptions().guided_candidates;
   std::vector<int> compare_guided = {0, 10};
   double deadline_ms = 2.0, cluster_radius = 0.5, whole_image_weight = 50.0;
-  int whole_image_candidates = 2;
+  int whole_image_candidates = 2, memory_queries = 10000;
   std::string out = "out/bench/scale", json_path, data = PLACEDB_DATA_DIR;
   app.add_option("--sizes", sizes, "database sizes, keyframes")
       ->delimiter(',')
@@ -309,6 +346,10 @@ int main(int argc, char** argv) {
   app.add_option("--whole-image-candidates", whole_image_candidates,
                  "that run's bow also matches this many keyframes most similar by thumbnail")
       ->check(CLI::Range(0, 1000))
+      ->capture_default_str();
+  app.add_option("--memory-queries", memory_queries,
+                 "at the largest size, resident memory after this many more bow queries (0: none)")
+      ->check(CLI::Range(0, 1000000))
       ->capture_default_str();
   app.add_option("--cluster-radius", cluster_radius,
                  "cluster radius, metres (views of one "
@@ -396,21 +437,25 @@ int main(int argc, char** argv) {
       malloc_trim(0);  // the build's heap, so that the open's memory shows
 
       // Open: memory of the kept session; the time of that first open (its
-      // files may have to come from disk) and the best of 3 more (the
-      // files in the page cache; the closing not timed).
+      // files dropped from the page cache: read from disk) and the best of 3
+      // more (the files in the page cache; the closing not timed).
       cv::setNumThreads(1);
       placedb::OpenOptions open_options;
       open_options.threads = 1;
       open_options.clusters.radius_m = cluster_radius;
+      const bool cold = DropFromPageCache(dir);
       const double rss_before = StatusMib("VmRSS");
+      const Resident resident_before = ResidentNow();
       placedb::Timer open_timer;
       const placedb::PlaceDatabase db = placedb::PlaceDatabase::Open(dir.string(), open_options);
       const double first_open_ms = open_timer.ElapsedMs();
       const double rss_after = StatusMib("VmRSS");
+      const Resident resident_open = ResidentNow();
       double open_ms = first_open_ms;
       for (int i = 0; i < 3; ++i) {
         placedb::Timer t;
-        const placedb::PlaceDatabase again = placedb::PlaceDatabase::Open(dir.string(), open_options);
+        const placedb::PlaceDatabase again =
+            placedb::PlaceDatabase::Open(dir.string(), open_options);
         open_ms = std::min(open_ms, t.ElapsedMs());
       }
       const uint64_t bytes = DirectoryBytes(dir);
@@ -457,11 +502,65 @@ int main(int argc, char** argv) {
         if ((m == "bow" || m == "exhaustive") && whole_image_weight > 0) {
           // The whole-image channel on (query/result.h): fused scores, and
           // bow also matches the keyframes most similar by thumbnail.
-          runs.push_back(RunMode(db, queries, m == "exhaustive" ? subset : all, m, 0.0,
-                                 num_sources, bow_candidates, guided_candidates,
-                                 whole_image_weight, whole_image_candidates));
+          runs.push_back(RunMode(db, queries, m == "exhaustive" ? subset : all, m, 0.0, num_sources,
+                                 bow_candidates, guided_candidates, whole_image_weight,
+                                 whole_image_candidates));
         }
       }
+      const Resident resident_runs = ResidentNow();
+      size_t runs_queries = 0;
+      for (const ModeRun& r : runs) runs_queries += r.queries.size() + 1;  // + warm-up
+      // At the largest size: more bow queries, fresh views spread over the
+      // database, and the memory after them.
+      nlohmann::json memory_run;
+      if (memory_queries > 0 && n == *std::max_element(sizes.begin(), sizes.end()) &&
+          std::find(modes.begin(), modes.end(), "bow") != modes.end()) {
+        placedb::QueryOptions options;
+        options.retrieval.method = placedb::RetrievalMethod::kBow;
+        options.retrieval.bow_candidates = bow_candidates;
+        options.retrieval.guided_candidates = guided_candidates;
+        placedb::AugmentOptions more = query_aug;
+        more.seed = kQuerySeed + 1;
+        std::vector<double> ms;
+        int correct = 0;
+        double extract_s = 0.0;
+        for (int i = 0; i < memory_queries; ++i) {
+          const int truth = static_cast<int>(1 + (2 * static_cast<size_t>(i) + 1) * n /
+                                                     (2 * static_cast<size_t>(memory_queries)));
+          placedb::Timer te;
+          const placedb::FeatureSet f =
+              db.Extract(placedb::Augment(placedb::LoadFrameImage(frames[truth - 1]), i + 1, more));
+          extract_s += te.ElapsedSeconds();
+          placedb::Timer t;
+          const placedb::QueryResult r = db.Query(f, options);
+          ms.push_back(t.ElapsedMs());
+          correct += !r.ranked.empty() && r.ranked.front().keyframe_id == truth;
+          if ((i + 1) % 1000 == 0) {
+            const Resident now = ResidentNow();
+            fmt::print(
+                "  memory run: {} bow queries, resident private {:.0f} MiB, file {:.0f} MiB\n",
+                i + 1, now.anon - resident_before.anon, now.file - resident_before.file);
+          }
+        }
+        const Resident after = ResidentNow();
+        const LatencyStats s = placedb::ComputeLatencyStats(ms);
+        memory_run = {{"queries", memory_queries},
+                      {"resident_increase", ResidentJson({after.anon - resident_before.anon,
+                                                          after.file - resident_before.file})},
+                      {"latency_ms", StatsJson(s)},
+                      {"recall_at_1", static_cast<double>(correct) / memory_queries},
+                      {"extract_seconds", extract_s}};
+        fmt::print(
+            "  {} more bow queries: resident +{:.0f} MiB private, +{:.0f} MiB file-backed over the "
+            "process before the open; p50 {:.2f} ms p99 {:.2f} ms recall@1 {:.3f}\n",
+            memory_queries, after.anon - resident_before.anon, after.file - resident_before.file,
+            s.p50, s.p99, static_cast<double>(correct) / memory_queries);
+      }
+      // Every byte checked (placedb verify).
+      placedb::Timer verify_timer;
+      db.Verify();
+      const double verify_ms = verify_timer.ElapsedMs();
+
       const double limit_ms = query_features * db.num_features() * ns / 1e6;
       const ModeRun* exhaustive = nullptr;
       for (const ModeRun& r : runs) {
@@ -480,16 +579,27 @@ int main(int argc, char** argv) {
           {"first_open_ms", first_open_ms},
           {"rss_mib", rss_after},
           {"rss_increase_mib", rss_after - rss_before},
+          {"first_open_cold", cold},
+          {"resident_after_open", ResidentJson({resident_open.anon - resident_before.anon,
+                                                resident_open.file - resident_before.file})},
+          {"resident_after_runs", ResidentJson({resident_runs.anon - resident_before.anon,
+                                                resident_runs.file - resident_before.file})},
+          {"runs_queries", runs_queries},
+          {"verify_ms", verify_ms},
           {"popcount_limit_ms", limit_ms},
           {"modes", nlohmann::json::array()}};
+      if (!memory_run.is_null()) size["memory_run"] = memory_run;
       fmt::print(
-          "{} keyframes, {} features: build {:.0f} s{}, database {:.1f} MB, open {:.1f} ms (first "
+          "{} keyframes, {} features: build {:.0f} s{}, database {:.1f} MB, open {:.1f} ms ({} "
           "{:.1f} ms), "
-          "RSS {:.0f} MiB (+{:.0f} MiB); popcount limit {:.2f} ms per query ({:.0f} x {} "
+          "RSS {:.0f} MiB (+{:.0f} MiB: {:.0f} private, {:.0f} file-backed; after {} queries "
+          "{:.0f} + {:.0f}); verify {:.0f} ms; popcount limit {:.2f} ms per query ({:.0f} x {} "
           "features x {:.3f} ns)\n",
-          db.size(), db.num_features(), build_seconds, reused ? " (earlier run)" : "",
-          bytes / 1e6, open_ms, first_open_ms, rss_after, rss_after - rss_before, limit_ms,
-          query_features,
+          db.size(), db.num_features(), build_seconds, reused ? " (earlier run)" : "", bytes / 1e6,
+          open_ms, cold ? "cold" : "first", first_open_ms, rss_after, rss_after - rss_before,
+          resident_open.anon - resident_before.anon, resident_open.file - resident_before.file,
+          runs_queries, resident_runs.anon - resident_before.anon,
+          resident_runs.file - resident_before.file, verify_ms, limit_ms, query_features,
           db.num_features(), ns);
       for (const ModeRun& r : runs) {
         const LatencyStats s = placedb::ComputeLatencyStats(r.ms);

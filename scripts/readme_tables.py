@@ -157,13 +157,33 @@ def scale_table(j):
             rows.append(f"| {s['keyframes']} | {name} | {m['queries']} | {m['latency_ms']['p50']:.2f} | "
                         f"{m['latency_ms']['p99']:.2f} | {m['recall_at_1']:.3f} | {m['place_recall_at_1']:.3f} | "
                         f"{m['examined_mean']:.0f} | {vs} |")
-    rows += ["", "| keyframes | features (per keyframe) | build s | database MB | open ms (first open) | "
-             "memory after open MiB (increase) | popcount limit ms |", "| --- | --- | --- | --- | --- | --- | --- |"]
+    rows += ["", "| keyframes | features (per keyframe) | build s | database MB | open ms, warm (cold) | "
+             "resident after open MiB: private + file-backed | after the runs (queries) | "
+             "verify s | popcount limit ms |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+    memory_runs = []
     for s in j["sizes"]:
-        first = f" ({s['first_open_ms']:.1f})" if "first_open_ms" in s else ""
+        cold = s.get("first_open_cold", False)
+        first = f" ({s['first_open_ms']:.1f}{'' if cold else ', first'})" if "first_open_ms" in s else ""
+        if "resident_after_open" in s:
+            o, r = s["resident_after_open"], s["resident_after_runs"]
+            after_open = f"{o['private_mib']:.0f} + {o['file_mib']:.0f}"
+            after_runs = f"{r['private_mib']:.0f} + {r['file_mib']:.0f} ({s['runs_queries']})"
+        else:
+            after_open, after_runs = f"+{s['rss_increase_mib']:.0f} (RSS)", ""
+        verify = f"{s['verify_ms'] / 1000:.1f}" if "verify_ms" in s else ""
         rows.append(f"| {s['keyframes']} | {s['features']} ({s['features_per_keyframe']:.0f}) | "
                     f"{s['build_seconds']:.0f} | {s['database_bytes'] / 1e6:.1f} | {s['open_ms']:.1f}{first} | "
-                    f"{s['rss_mib']:.0f} (+{s['rss_increase_mib']:.0f}) | {s['popcount_limit_ms']:.2f} |")
+                    f"{after_open} | {after_runs} | {verify} | {s['popcount_limit_ms']:.2f} |")
+        if "memory_run" in s:
+            memory_runs.append((s["keyframes"], s["memory_run"]))
+    for keyframes, m in memory_runs:
+        r = m["resident_increase"]
+        rows += ["", f"At {keyframes} keyframes, after {m['queries']} more bag-of-words queries (fresh views spread "
+                 f"over the map): resident **{r['private_mib']:.0f} MiB private + {r['file_mib']:.0f} MiB "
+                 f"file-backed** over the process before the open; their latency p50 "
+                 f"{m['latency_ms']['p50']:.2f} ms, p99 {m['latency_ms']['p99']:.2f} ms, recall@1 "
+                 f"{m['recall_at_1']:.3f}."]
     note = (f"{j['sample_images']} sample images augmented; at most {j['features_per_frame']} ORB features per "
             f"frame (FAST threshold {j['fast_threshold']}); {j['cpus']} CPUs; queries on one thread, feature "
             f"extraction excluded; bow scores {j['bow_candidates']} candidates by bag of words and matches the "
@@ -172,7 +192,11 @@ def scale_table(j):
             "keyframe the query was made from; place recall@1: a view of the same sample image. Exhaustive search "
             f"runs on {j['exhaustive_queries_above_1000']} of the queries above 1000 keyframes; \"vs exhaustive\" "
             "gives the difference in recall@1 / place recall@1 on those. Open: the best of 3 opens with the "
-            "files in the page cache (the first open, in brackets, may read them from disk). Popcount limit: "
+            "files in the page cache; in brackets the first open, with every file of the database dropped from "
+            "the page cache first (posix_fadvise DONTNEED). Resident memory: what the open added to the "
+            "process, private (RssAnon, the heap) and file-backed (RssFile, pages of the mapped files read so "
+            "far); then the same after all the runs of the table. Verify: `placedb verify` (every byte). "
+            "Popcount limit: "
             f"{j['ns_per_distance']:.3f} ns per distance ({j['hamming_kernel']} kernel, in cache) × query features × "
             "database features.")
     return "\n".join(rows) + "\n\n" + note

@@ -228,7 +228,8 @@ TEST_F(CliUserTest, ExperimentChecksItsDataUpFrontAndTakesTheIndex) {
 // default. Each command's help ends with its examples.
 TEST_F(CliUserTest, HelpEndsWithExamplesAndSaysDefaultsInWords) {
   for (const char* command :
-       {"build", "query", "eval", "experiment", "bench", "options", "add", "remove", "info"}) {
+       {"build", "query", "eval", "experiment", "bench", "options", "add", "remove", "info",
+        "verify"}) {
     const CommandResult help = RunShell(kBinary + " " + command + " --help 2>&1");
     EXPECT_EQ(help.code, 0) << command;
     const size_t at = help.output.rfind("\nExamples:\n");
@@ -249,7 +250,8 @@ TEST_F(CliUserTest, EveryHelpExampleRuns) {
   int examples = 0;
   // The map changes last: the evaluations above query frames it lacks.
   for (const char* command :
-       {"build", "query", "eval", "experiment", "bench", "options", "add", "remove", "info"}) {
+       {"build", "query", "eval", "experiment", "bench", "options", "add", "remove", "info",
+        "verify"}) {
     const std::string help = RunShell(kBinary + " " + command + " --help 2>&1").output;
     std::istringstream lines(help.substr(help.rfind("\nExamples:\n") + 11));
     std::string line, joined;
@@ -266,7 +268,7 @@ TEST_F(CliUserTest, EveryHelpExampleRuns) {
       ++examples;
     }
   }
-  EXPECT_EQ(examples, 18);
+  EXPECT_EQ(examples, 19);
   tmp_.Write("examples.sh", script);
   const CommandResult run = RunShell("bash " + Path("examples.sh"));
   EXPECT_EQ(run.code, 0) << script << "\n" << ReadFile(Path("examples.log"));

@@ -26,6 +26,7 @@ std::unique_ptr<Command> MakeBenchCommand();
 std::unique_ptr<Command> MakeAddCommand();
 std::unique_ptr<Command> MakeRemoveCommand();
 std::unique_ptr<Command> MakeOptionsCommand();
+std::unique_ptr<Command> MakeVerifyCommand();
 
 }  // namespace cli
 }  // namespace placedb

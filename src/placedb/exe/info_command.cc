@@ -31,8 +31,8 @@ class InfoCommand : public Command {
   }
 
   int Run() override {
-    // The whole database is opened, so that info also checks every byte of
-    // it (a keyframe table would leave the features unread).
+    // The whole database is opened: its keyframe table and index files are
+    // checked (`placedb verify` checks the features too).
     const PlaceDatabase db = db_.Open();
     if (json_) {
       std::cout << db.info_json(2) << "\n";

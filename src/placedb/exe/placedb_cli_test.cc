@@ -62,7 +62,7 @@ class CliTest : public ::testing::Test {
 TEST_F(CliTest, HelpListsEverySubcommandAndOption) {
   const CommandResult help = Placedb("--help");
   EXPECT_EQ(help.code, 0);
-  for (const char* sub : {"build", "query", "eval", "experiment", "info", "bench"}) {
+  for (const char* sub : {"build", "query", "eval", "experiment", "info", "bench", "verify"}) {
     EXPECT_TRUE(Contains(help.output, sub)) << sub;
   }
   const CommandResult build_help = Placedb("build --help");
@@ -315,8 +315,12 @@ TEST_F(CliTest, ErrorKindsGiveTheirExitCodeAndOneLine) {
       {"build --images " + kImages + " --out " + Path("x") + " --threads abc", 1, {"--threads"}},
       // No database there: NotFound.
       {"info --db " + Path("nope"), 1, {"no database at", Path("nope")}},
-      // A flipped byte: CorruptDatabase.
-      {"info --db " + damaged, 1, {"checksum mismatch", fs::path(keyframes).filename().string()}},
+      // A flipped byte: CorruptDatabase, from verify, or from the query that
+      // first uses the damaged keyframe (the open checks the keyframe table).
+      {"verify --db " + damaged, 1, {"checksum mismatch", fs::path(keyframes).filename().string()}},
+      {"query --db " + damaged + " --image " + kImages + "/001.jpg",
+       1,
+       {"fail their block checksum", fs::path(keyframes).filename().string()}},
       // Bad option values, named as flags.
       {"build --images " + kImages + " --out " + Path("x") + " --frame-size 10x10",
        1,
@@ -335,6 +339,10 @@ TEST_F(CliTest, ErrorKindsGiveTheirExitCodeAndOneLine) {
     EXPECT_FALSE(Contains(r.output, ".cc:") || Contains(r.output, ".h:")) << r.output;
     for (const std::string& part : c.says) EXPECT_TRUE(Contains(r.output, part)) << r.output;
   }
+  // The intact database verifies.
+  const CommandResult intact = Placedb("verify --db " + db);
+  EXPECT_EQ(intact.code, 0) << intact.output;
+  EXPECT_TRUE(Contains(intact.output, "intact: 3 keyframes")) << intact.output;
   // --top-k is named too: as "--top-k" once the options' own checks mark
   // their names (option tables); until then by its keyword.
   const CommandResult top_k = PlacedbStderr(query + " --top-k 0");
@@ -1078,7 +1086,7 @@ TEST_F(CliTest, AddRemoveInfoHelpListsOnlyTheirFlagsWithExamples) {
   for (const char* flag : {"--partition", "--keyframes", "--cluster-radius", "--threads"}) {
     EXPECT_NE(std::find(open_flags.begin(), open_flags.end(), flag), open_flags.end()) << flag;
   }
-  for (const std::string command : {"add", "remove", "info"}) {
+  for (const std::string command : {"add", "remove", "info", "verify"}) {
     const CommandResult help = Placedb(command + " --help");
     ASSERT_EQ(help.code, 0) << help.output;
     EXPECT_TRUE(HasFlag(help.output, "--db")) << command;

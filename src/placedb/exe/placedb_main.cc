@@ -46,6 +46,7 @@ int main(int argc, char** argv) {
   commands.push_back(cli::MakeAddCommand());
   commands.push_back(cli::MakeRemoveCommand());
   commands.push_back(cli::MakeOptionsCommand());
+  commands.push_back(cli::MakeVerifyCommand());
   std::vector<std::pair<CLI::App*, cli::Command*>> table;
   for (auto& c : commands) table.emplace_back(c->Register(app), c.get());
   try {

@@ -778,6 +778,24 @@ PYBIND11_MODULE(placedb, m) {
           "a new frame gets: after the largest the database ever held), removed (keyframes "
           "removed since removed_since; None when not recorded: a database of an earlier "
           "placedb, not saved since)")
+      .def(
+          "verify",
+          [](const PlaceDatabase& db) {
+            PlaceDatabase::VerifyReport r;
+            {
+              py::gil_scoped_release release;
+              r = db.Verify();
+            }
+            py::dict out;
+            out["keyframes"] = r.keyframes;
+            out["keyframes_bytes"] = r.keyframes_bytes;
+            out["format_version"] = r.format_version;
+            return out;
+          },
+          "Checks every byte of the database now (what `placedb verify` does; opening checks "
+          "the keyframe table, and a keyframe's features are otherwise checked when a query "
+          "first reads them). Returns {keyframes, keyframes_bytes, format_version}; raises "
+          "CorruptDatabaseError at the first damage.")
       .def("keyframe", &GetKeyframe, py::arg("id"),
            "The keyframe with this id, a Keyframe; KeyError when there is none.")
       .def("__contains__",

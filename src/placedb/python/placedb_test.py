@@ -108,6 +108,14 @@ class PlaceDbTest(unittest.TestCase):
         self.assertNotIn(999, self.db)
         with self.assertRaises(KeyError):
             self.db.keyframe(999)
+        # Compact keypoints: positions of a 512 x 384 stored image in 1/64 px,
+        # no response.
+        self.assertTrue(np.all(kp[:, 4] == 0))
+        self.assertTrue(np.all((kp[:, 0] * 64) == np.round(kp[:, 0] * 64)))
+        self.assertFalse(np.all((kp[:, 0] * 8) == np.round(kp[:, 0] * 8)))
+        report = self.db.verify()
+        self.assertEqual(report["format_version"], 3)
+        self.assertEqual(report["keyframes"], len(self.db))
 
     # ---- queries ----------------------------------------------------------
     def test_read_image(self):

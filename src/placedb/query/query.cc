@@ -140,7 +140,7 @@ void KeepBest(std::vector<Examined>* list, size_t keep) {
 VerifyResult VerifyKeyframe(const Database& db, size_t index, const FeatureSet& query,
                             const std::vector<cv::DMatch>& matches, const VerifyOptions& options) {
   const Keyframe& k = db.keyframe(index);
-  const Span<cv::KeyPoint> keypoints = db.Keypoints(index);
+  const std::vector<cv::KeyPoint> keypoints = db.Keypoints(index);
   std::vector<cv::Point2f> q, t;
   q.reserve(matches.size());
   t.reserve(matches.size());
@@ -625,7 +625,7 @@ MatchDetail MatchKeyframe(const Database& db, const FeatureSet& query, size_t in
   MatchDescriptors(grouped.block, db.Descriptors(index), options.match, &d.matches);
   d.query_keypoints = grouped.set.keypoints;
   const Keyframe& k = db.keyframe(index);
-  const Span<cv::KeyPoint> keypoints = db.Keypoints(index);
+  const std::vector<cv::KeyPoint> keypoints = db.Keypoints(index);
   d.keyframe_stored_points.reserve(keypoints.size());
   d.keyframe_points.reserve(keypoints.size());
   for (const cv::KeyPoint& kp : keypoints) {

@@ -1,9 +1,11 @@
 #include "placedb/retrieval/bow_index.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstddef>
 #include <cstring>
+#include <functional>
 #include <iterator>
 #include <type_traits>
 
@@ -45,10 +47,10 @@ struct SectionOffsets {
   explicit SectionOffsets(uint64_t limit) : layout(limit) {}
   flat_file::Layout layout;
   uint64_t ids = 0, vector_offsets = 0, vector_words = 0, vector_weights = 0, direct_offsets = 0,
-           direct_nodes = 0, word_offsets = 0, postings = 0;
+           direct_nodes = 0, word_offsets = 0, postings = 0, keyframe_blocks = 0, word_blocks = 0;
 };
-SectionOffsets IndexSections(uint64_t keyframes, uint64_t entries, uint64_t features,
-                             uint64_t words, uint64_t limit) {
+SectionOffsets IndexSections(uint32_t version, uint64_t keyframes, uint64_t entries,
+                             uint64_t features, uint64_t words, uint64_t limit) {
   SectionOffsets s(limit);
   flat_file::Layout& layout = s.layout;
   s.ids = layout.Add(keyframes, sizeof(int32_t));
@@ -59,6 +61,10 @@ SectionOffsets IndexSections(uint64_t keyframes, uint64_t entries, uint64_t feat
   s.direct_nodes = layout.Add(features, sizeof(uint32_t));
   s.word_offsets = layout.Add(words + 1, sizeof(uint64_t));
   s.postings = layout.Add(entries, kPostingBytes);
+  if (version >= 2) {
+    s.keyframe_blocks = layout.Add(keyframes, sizeof(uint64_t));
+    s.word_blocks = layout.Add(words, sizeof(uint64_t));
+  }
   return s;
 }
 
@@ -159,6 +165,220 @@ double BowScore(const BowVector& a, const BowVector& b) {
   return score;
 }
 
+// The arrays of an index file image, and the checks of its blocks: one
+// keyframe's vector and direct nodes, one word's postings (each adds its
+// entries' EntryHash to *hash, for the transposition check).
+struct BowIndex::Arrays {
+  uint32_t num_keyframes = 0, num_words = 0, direct_level = 0;
+  const uint64_t* vector_offsets = nullptr;
+  const uint32_t* vector_words = nullptr;
+  const float* vector_weights = nullptr;
+  const uint64_t* direct_offsets = nullptr;
+  const uint32_t* direct_nodes = nullptr;
+  const uint64_t* word_offsets = nullptr;
+  const Posting* postings = nullptr;
+  const uint8_t* direct_node_ok = nullptr;  // per vocabulary node
+  size_t num_nodes = 0;
+
+  // The arrays of an image whose sections lie at `at` (the node table not
+  // set).
+  static Arrays At(const char* base, const SectionOffsets& at, uint32_t keyframes, uint32_t words) {
+    Arrays a;
+    a.num_keyframes = keyframes;
+    a.num_words = words;
+    a.vector_offsets = reinterpret_cast<const uint64_t*>(base + at.vector_offsets);
+    a.vector_words = reinterpret_cast<const uint32_t*>(base + at.vector_words);
+    a.vector_weights = reinterpret_cast<const float*>(base + at.vector_weights);
+    a.direct_offsets = reinterpret_cast<const uint64_t*>(base + at.direct_offsets);
+    a.direct_nodes = reinterpret_cast<const uint32_t*>(base + at.direct_nodes);
+    a.word_offsets = reinterpret_cast<const uint64_t*>(base + at.word_offsets);
+    a.postings = reinterpret_cast<const Posting*>(base + at.postings);
+    return a;
+  }
+
+  // Why keyframe i's vector or direct nodes are impossible, or "".
+  std::string CheckKeyframe(uint32_t i, uint64_t* hash) const {
+    uint64_t h = 0;
+    double sum = 0.0;
+    for (uint64_t e = vector_offsets[i]; e < vector_offsets[i + 1]; ++e) {
+      h += EntryHash(vector_words[e], i, vector_weights[e]);
+      if (vector_words[e] >= num_words ||
+          (e > vector_offsets[i] && vector_words[e - 1] >= vector_words[e])) {
+        return internal::JoinMessage("keyframe ", i, "'s words are not ascending and below ",
+                                     num_words);
+      }
+      if (!(std::isfinite(vector_weights[e]) && vector_weights[e] > 0.0f))
+        return internal::JoinMessage("keyframe ", i, " has weight ", vector_weights[e],
+                                     " (finite and > 0 expected)");
+      sum += vector_weights[e];
+    }
+    if (vector_offsets[i + 1] > vector_offsets[i] && std::abs(sum - 1.0) > 1e-3)
+      return internal::JoinMessage("keyframe ", i, "'s weights sum to ", sum, ", not 1");
+    for (uint64_t e = direct_offsets[i]; e < direct_offsets[i + 1]; ++e) {
+      const uint32_t node = direct_nodes[e];
+      if (node >= num_nodes || !direct_node_ok[node])
+        return internal::JoinMessage("direct entry ", e, " (node ", node,
+                                     ") is not a node of level ", direct_level);
+    }
+    if (hash != nullptr) *hash += h;
+    return "";
+  }
+  // Why word w's postings are impossible, or "".
+  std::string CheckWord(uint32_t word, uint64_t* hash) const {
+    uint64_t h = 0;
+    for (uint64_t p = word_offsets[word]; p < word_offsets[word + 1]; ++p) {
+      const uint32_t k = postings[p].keyframe;
+      if (k >= num_keyframes)
+        return internal::JoinMessage("a posting of word ", word, " names keyframe ", k);
+      if (p > word_offsets[word] && postings[p - 1].keyframe >= k)
+        return internal::JoinMessage("the postings of word ", word, " are not sorted by keyframe");
+      if (!(std::isfinite(postings[p].weight) && postings[p].weight > 0.0f))
+        return internal::JoinMessage("a posting of word ", word, " has weight ", postings[p].weight,
+                                     " (finite and > 0 expected)");
+      h += EntryHash(word, k, postings[p].weight);
+    }
+    if (hash != nullptr) *hash += h;
+    return "";
+  }
+  // What is wrong with keyframe i's block (its checksum, with `sums`; then
+  // its values), or "".
+  std::string KeyframeBlockProblem(uint32_t i, const uint64_t* sums, uint64_t* hash) const {
+    if (sums != nullptr && KeyframeSum(i) != sums[i]) {
+      return internal::JoinMessage("keyframe ", i,
+                                   "'s entries fail their block checksum (the file is corrupted)");
+    }
+    return CheckKeyframe(i, hash);
+  }
+  std::string WordBlockProblem(uint32_t word, const uint64_t* sums, uint64_t* hash) const {
+    if (sums != nullptr && WordSum(word) != sums[word]) {
+      return internal::JoinMessage("the postings of word ", word,
+                                   " fail their block checksum (the file is corrupted)");
+    }
+    return CheckWord(word, hash);
+  }
+  // The block checksums of version 2.
+  uint64_t KeyframeSum(uint32_t i) const {
+    Checksum64Stream s;
+    const uint64_t b = vector_offsets[i], e = vector_offsets[i + 1];
+    s.Update(vector_words + b, (e - b) * sizeof(uint32_t));
+    s.Update(vector_weights + b, (e - b) * sizeof(float));
+    s.Update(direct_nodes + direct_offsets[i],
+             (direct_offsets[i + 1] - direct_offsets[i]) * sizeof(uint32_t));
+    return s.Digest();
+  }
+  uint64_t WordSum(uint32_t word) const {
+    return Checksum64(postings + word_offsets[word],
+                      (word_offsets[word + 1] - word_offsets[word]) * kPostingBytes);
+  }
+};
+
+struct BowIndex::LazyCheck {
+  std::unique_ptr<std::atomic<uint8_t>[]> keyframe_checked, word_checked;
+};
+
+BowIndex::Arrays BowIndex::MakeArrays() const {
+  Arrays a;
+  a.num_keyframes = num_keyframes_;
+  a.num_words = vocabulary_->num_words();
+  a.direct_level = static_cast<uint32_t>(direct_level_);
+  a.vector_offsets = vector_offsets_;
+  a.vector_words = vector_words_;
+  a.vector_weights = vector_weights_;
+  a.direct_offsets = direct_offsets_;
+  a.direct_nodes = direct_nodes_;
+  a.word_offsets = word_offsets_;
+  a.postings = postings_;
+  a.direct_node_ok = direct_node_ok_.data();
+  a.num_nodes = direct_node_ok_.size();
+  return a;
+}
+
+namespace {
+
+// Marks a block checked once `problem` finds nothing wrong with it (else
+// CorruptDatabase "<shown>: <problem>").
+template <typename Problem>
+void CheckOnce(std::atomic<uint8_t>* checked, const std::string& shown, const Problem& problem) {
+  if (checked->load(std::memory_order_acquire)) return;
+  const std::string bad = problem();
+  if (!bad.empty()) PLACEDB_THROW_CORRUPT(shown, ": ", bad);
+  checked->store(1, std::memory_order_release);
+}
+
+}  // namespace
+
+void BowIndex::EnsureKeyframeChecked(uint32_t index) const {
+  if (lazy_ == nullptr) return;
+  CheckOnce(&lazy_->keyframe_checked[index], shown_,
+            [&] { return MakeArrays().KeyframeBlockProblem(index, keyframe_sums_, nullptr); });
+}
+
+void BowIndex::EnsureWordChecked(uint32_t word) const {
+  if (lazy_ == nullptr) return;
+  CheckOnce(&lazy_->word_checked[word], shown_,
+            [&] { return MakeArrays().WordBlockProblem(word, word_sums_, nullptr); });
+}
+
+namespace {
+
+// Everything of an index's arrays: every keyframe's and word's block (and,
+// with `sums`, its block checksum), and the inverted file exactly the
+// vectors transposed. Halves of the vectors and of the postings (split
+// where half the entries lie) and `also` run at once. Throws
+// CorruptDatabase "<shown>: ...".
+template <typename ArraysT>
+void CheckAllBlocks(const ArraysT& a, uint64_t entries, const uint64_t* keyframe_sums,
+                    const uint64_t* word_sums, const std::string& shown,
+                    const std::function<void()>& also) {
+  // Both sides are summed as a multiset hash in sequential passes (a random
+  // access per posting into the vectors would dominate the time on a large
+  // database); with the counts equal, a difference shows as different
+  // sums, but for a deliberately forged file (and the file is checksummed
+  // as a whole). The sums add across ranges.
+  const auto keyframes = [&](uint32_t first, uint32_t last, uint64_t* hash) {
+    for (uint32_t i = first; i < last; ++i) {
+      const std::string bad = a.KeyframeBlockProblem(i, keyframe_sums, hash);
+      if (!bad.empty()) PLACEDB_THROW_CORRUPT(shown, ": ", bad);
+    }
+  };
+  const auto words = [&](uint32_t first, uint32_t last, uint64_t* hash) {
+    for (uint32_t w = first; w < last; ++w) {
+      const std::string bad = a.WordBlockProblem(w, word_sums, hash);
+      if (!bad.empty()) PLACEDB_THROW_CORRUPT(shown, ": ", bad);
+    }
+  };
+  const uint32_t mid_keyframe = static_cast<uint32_t>(
+      std::upper_bound(a.vector_offsets, a.vector_offsets + a.num_keyframes, entries / 2) -
+      a.vector_offsets);
+  const uint32_t mid_word = static_cast<uint32_t>(
+      std::upper_bound(a.word_offsets, a.word_offsets + a.num_words, entries / 2) - a.word_offsets);
+  uint64_t vector_hash[2] = {0, 0}, posting_hash[2] = {0, 0};
+  RunTogether({also, [&] { keyframes(0, mid_keyframe, &vector_hash[0]); },
+               [&] { keyframes(mid_keyframe, a.num_keyframes, &vector_hash[1]); },
+               [&] { words(0, mid_word, &posting_hash[0]); },
+               [&] { words(mid_word, a.num_words, &posting_hash[1]); }});
+  if (posting_hash[0] + posting_hash[1] != vector_hash[0] + vector_hash[1]) {
+    PLACEDB_THROW_CORRUPT(shown,
+                          ": the inverted file disagrees with the keyframe vectors (not their "
+                          "transpose)");
+  }
+}
+
+// The XXH3-64 of a version 2 file's tables (BowIndexFileHeader::tables_checksum).
+uint64_t TablesChecksum(const char* data, const SectionOffsets& at, uint64_t keyframes,
+                        uint64_t words) {
+  Checksum64Stream s;
+  s.Update(data + at.ids, keyframes * sizeof(int32_t));
+  s.Update(data + at.vector_offsets, (keyframes + 1) * sizeof(uint64_t));
+  s.Update(data + at.direct_offsets, (keyframes + 1) * sizeof(uint64_t));
+  s.Update(data + at.word_offsets, (words + 1) * sizeof(uint64_t));
+  s.Update(data + at.keyframe_blocks, keyframes * sizeof(uint64_t));
+  s.Update(data + at.word_blocks, words * sizeof(uint64_t));
+  return s.Digest();
+}
+
+}  // namespace
+
 BowIndex BowIndex::Build(std::shared_ptr<const Vocabulary> vocabulary, const Database& db,
                          const BowIndexOptions& options, ThreadPool* pool, ProgressBar* progress) {
   PLACEDB_CHECK(vocabulary != nullptr, "a bag-of-words index needs a vocabulary");
@@ -195,8 +415,8 @@ BowIndex BowIndex::Build(std::shared_ptr<const Vocabulary> vocabulary, const Dat
     features += nodes[i].size();
   }
   const uint32_t num_words = vocabulary->num_words();
-  const SectionOffsets at =
-      IndexSections(num_keyframes, entries, features, num_words, UINT64_MAX / 4);
+  const SectionOffsets at = IndexSections(kBowIndexFormatVersion, num_keyframes, entries, features,
+                                          num_words, UINT64_MAX / 4);
   char* w = nullptr;
   flat_file::Image image = flat_file::NewImage(at.layout.end(), &w);
   BowIndexFileHeader header{};
@@ -243,6 +463,16 @@ BowIndex BowIndex::Build(std::shared_ptr<const Vocabulary> vocabulary, const Dat
   }
   for (uint32_t word = num_words; word > 0; --word) word_offsets[word] = word_offsets[word - 1];
   word_offsets[0] = 0;
+  // The block checksums, then the tables', in the header.
+  const Arrays a = Arrays::At(w, at, static_cast<uint32_t>(num_keyframes), num_words);
+  auto* keyframe_sums = reinterpret_cast<uint64_t*>(w + at.keyframe_blocks);
+  auto* word_sums = reinterpret_cast<uint64_t*>(w + at.word_blocks);
+  ForEach(pool, num_keyframes,
+          [&](size_t i) { keyframe_sums[i] = a.KeyframeSum(static_cast<uint32_t>(i)); });
+  ForEach(pool, num_words,
+          [&](size_t word) { word_sums[word] = a.WordSum(static_cast<uint32_t>(word)); });
+  header.tables_checksum = TablesChecksum(w, at, num_keyframes, num_words);
+  std::memcpy(w, &header, sizeof(header));
   flat_file::Seal(w, at.layout.end(), kBowIndexMagic, kBowIndexFormatVersion);
   return FromImage(std::move(image), "(built index)", std::move(vocabulary), db);
 }
@@ -266,10 +496,17 @@ BowIndex BowIndex::FromImage(flat_file::Image image, const std::string& shown,
   PLACEDB_CHECK(vocabulary != nullptr, "a bag-of-words index needs a vocabulary");
   if (!HostIsLittleEndian()) PLACEDB_THROW_IO("placedb indexes need a little-endian host");
   auto fail = [&](const auto&... what) { PLACEDB_THROW_CORRUPT(shown, ": ", what...); };
-  // The payload's checksum runs below, beside the checks that read the
-  // payload (all of them bounded by the header, which is checked here).
-  flat_file::CheckSealedHeader(image, kBowIndexMagic, kBowIndexFormatVersion, "bag-of-words index",
-                               shown);
+  // Version 1 is read too: the header check is for the version it says.
+  uint32_t version = kBowIndexFormatVersion;
+  if (image.size >= flat_file::kHeaderBytes) {
+    const uint32_t said = flat_file::ReadHeader<BowIndexFileHeader>(image.data).common.version;
+    if (said >= kOldestBowIndexFormatVersion && said <= kBowIndexFormatVersion) version = said;
+  }
+  const bool lazy = version >= 2;
+  // The payload's checksum: version 1 checks it below, beside the checks
+  // that read the payload (all of them bounded by the header, which is
+  // checked here); version 2 per block, on first use.
+  flat_file::CheckSealedHeader(image, kBowIndexMagic, version, "bag-of-words index", shown);
   const auto header = flat_file::ReadHeader<BowIndexFileHeader>(image.data);
   const Vocabulary& vocab = *vocabulary;
   if (header.vocabulary_checksum != vocab.checksum()) {
@@ -286,8 +523,9 @@ BowIndex BowIndex::FromImage(flat_file::Image image, const std::string& shown,
     fail("the index counts ", num_words, " words, its vocabulary ", vocab.num_words());
   if (direct_level > static_cast<uint32_t>(vocab.depth()))
     fail("direct level ", direct_level, " is deeper than the vocabulary's depth ", vocab.depth());
-  if (header.reserved0 != 0 || std::any_of(std::begin(header.reserved), std::end(header.reserved),
-                                           [](uint64_t v) { return v != 0; })) {
+  if (header.reserved0 != 0 || (!lazy && header.tables_checksum != 0) ||
+      std::any_of(std::begin(header.reserved), std::end(header.reserved),
+                  [](uint64_t v) { return v != 0; })) {
     fail("reserved header fields are not 0");
   }
   if (num_keyframes != db.size()) {
@@ -299,12 +537,15 @@ BowIndex BowIndex::FromImage(flat_file::Image image, const std::string& shown,
          " descriptors of ", db.descriptor_bytes(), " bytes, the vocabulary ",
          FeatureTypeName(vocab.type()), " of ", vocab.row_bytes(), ")");
   }
-  const SectionOffsets at = IndexSections(num_keyframes, entries, features, num_words, image.size);
+  const SectionOffsets at =
+      IndexSections(version, num_keyframes, entries, features, num_words, image.size);
   if (at.layout.overflowed() || at.layout.end() != image.size) {
     fail("the file's size (", image.size, " bytes) does not match its ", num_keyframes,
          " keyframes, ", entries, " entries and ", features, " feature rows");
   }
   if (!at.layout.PaddingIsZero(image.data)) fail("the padding between sections is not 0");
+  if (lazy && TablesChecksum(image.data, at, num_keyframes, num_words) != header.tables_checksum)
+    fail("tables checksum mismatch (the file is corrupted)");
 
   // The database: ids in order, feature counts.
   const int32_t* ids = image.At<int32_t>(at.ids);
@@ -331,104 +572,59 @@ BowIndex BowIndex::FromImage(flat_file::Image image, const std::string& shown,
            db.FeatureCount(i), " in the database)");
     }
   }
-  // Which nodes a direct entry may name, as a table of one byte per node:
-  // the entries are then checked in one sequential pass instead of one
-  // random access into the tree each.
-  std::vector<uint8_t> direct_node_ok(vocab.num_nodes(), 0);
-  for (uint32_t node = 0; node < vocab.num_nodes(); ++node) {
-    const Vocabulary::Node& n = vocab.node(node);
-    direct_node_ok[node] =
-        n.level == direct_level || (n.num_children == 0 && n.level < direct_level);
-  }
-  const uint32_t* direct_nodes = image.At<uint32_t>(at.direct_nodes);
   const uint64_t* vector_offsets = image.At<uint64_t>(at.vector_offsets);
-  const uint32_t* vector_words = image.At<uint32_t>(at.vector_words);
-  const float* vector_weights = image.At<float>(at.vector_weights);
   check_offsets(vector_offsets, num_keyframes, entries, "vector");
   const uint64_t* word_offsets = image.At<uint64_t>(at.word_offsets);
-  const Posting* postings = image.At<Posting>(at.postings);
   check_offsets(word_offsets, num_words, entries, "word");
-
-  // Every direct entry a node of the direct level.
-  const auto check_direct = [&] {
-    for (uint64_t e = 0; e < features; ++e) {
-      const uint32_t node = direct_nodes[e];
-      if (node >= vocab.num_nodes() || !direct_node_ok[node])
-        fail("direct entry ", e, " (node ", node, ") is not a node of level ", direct_level);
-    }
-  };
-  // The keyframe vectors [first, last): words ascending and below W,
-  // weights finite, positive, summing to 1. The inverted file must hold
-  // exactly the vectors' (word, keyframe, weight) entries, transposed. Both
-  // sides are summed as a multiset hash in sequential passes (a random
-  // access per posting into the vectors would dominate the open time of a
-  // large database); with the counts equal, a difference shows as
-  // different sums, but for a deliberately forged file (and the file is
-  // checksummed as a whole). The sums add across ranges.
-  const auto hash_vectors = [&](uint32_t first, uint32_t last, uint64_t* hash) {
-    uint64_t h = 0;
-    for (uint32_t i = first; i < last; ++i) {
-      double sum = 0.0;
-      for (uint64_t e = vector_offsets[i]; e < vector_offsets[i + 1]; ++e) {
-        h += EntryHash(vector_words[e], i, vector_weights[e]);
-        if (vector_words[e] >= num_words ||
-            (e > vector_offsets[i] && vector_words[e - 1] >= vector_words[e]))
-          fail("keyframe ", i, "'s words are not ascending and below ", num_words);
-        if (!(std::isfinite(vector_weights[e]) && vector_weights[e] > 0.0f))
-          fail("keyframe ", i, " has weight ", vector_weights[e], " (finite and > 0 expected)");
-        sum += vector_weights[e];
-      }
-      if (vector_offsets[i + 1] > vector_offsets[i] && std::abs(sum - 1.0) > 1e-3)
-        fail("keyframe ", i, "'s weights sum to ", sum, ", not 1");
-    }
-    *hash = h;
-  };
-  // The postings of words [first, last): keyframes below K, ascending
-  // within a word.
-  const auto hash_postings = [&](uint32_t first, uint32_t last, uint64_t* hash) {
-    uint64_t h = 0;
-    for (uint32_t word = first; word < last; ++word) {
-      for (uint64_t p = word_offsets[word]; p < word_offsets[word + 1]; ++p) {
-        const uint32_t k = postings[p].keyframe;
-        if (k >= num_keyframes) fail("a posting of word ", word, " names keyframe ", k);
-        if (p > word_offsets[word] && postings[p - 1].keyframe >= k)
-          fail("the postings of word ", word, " are not sorted by keyframe");
-        h += EntryHash(word, k, postings[p].weight);
-      }
-    }
-    *hash = h;
-  };
-  // At once, halves of the vectors and of the postings (split where half
-  // the entries lie), the direct index and the payload's checksum, whose
-  // failure is reported first.
-  const uint32_t mid_keyframe = static_cast<uint32_t>(
-      std::upper_bound(vector_offsets, vector_offsets + num_keyframes, entries / 2) -
-      vector_offsets);
-  const uint32_t mid_word = static_cast<uint32_t>(
-      std::upper_bound(word_offsets, word_offsets + num_words, entries / 2) - word_offsets);
-  uint64_t vector_hash[2] = {0, 0}, posting_hash[2] = {0, 0};
-  RunTogether({[&] { flat_file::CheckPayloadChecksum(image, shown); }, check_direct,
-               [&] { hash_vectors(0, mid_keyframe, &vector_hash[0]); },
-               [&] { hash_vectors(mid_keyframe, num_keyframes, &vector_hash[1]); },
-               [&] { hash_postings(0, mid_word, &posting_hash[0]); },
-               [&] { hash_postings(mid_word, num_words, &posting_hash[1]); }});
-  if (posting_hash[0] + posting_hash[1] != vector_hash[0] + vector_hash[1])
-    fail("the inverted file disagrees with the keyframe vectors (not their transpose)");
 
   BowIndex index;
   index.vocabulary_ = std::move(vocabulary);
   index.num_keyframes_ = num_keyframes;
   index.direct_level_ = static_cast<int>(direct_level);
   index.checksum_ = header.header_checksum;
+  index.format_version_ = version;
+  index.shown_ = shown;
   index.vector_offsets_ = vector_offsets;
-  index.vector_words_ = vector_words;
-  index.vector_weights_ = vector_weights;
+  index.vector_words_ = image.At<uint32_t>(at.vector_words);
+  index.vector_weights_ = image.At<float>(at.vector_weights);
   index.direct_offsets_ = direct_offsets;
-  index.direct_nodes_ = direct_nodes;
+  index.direct_nodes_ = image.At<uint32_t>(at.direct_nodes);
   index.word_offsets_ = word_offsets;
-  index.postings_ = postings;
+  index.postings_ = image.At<Posting>(at.postings);
+  // Which nodes a direct entry may name, as a table of one byte per node:
+  // the entries are then checked in one sequential pass instead of one
+  // random access into the tree each.
+  index.direct_node_ok_.assign(vocab.num_nodes(), 0);
+  for (uint32_t node = 0; node < vocab.num_nodes(); ++node) {
+    const Vocabulary::Node& n = vocab.node(node);
+    index.direct_node_ok_[node] =
+        n.level == direct_level || (n.num_children == 0 && n.level < direct_level);
+  }
+  if (lazy) {
+    index.keyframe_sums_ = image.At<uint64_t>(at.keyframe_blocks);
+    index.word_sums_ = image.At<uint64_t>(at.word_blocks);
+    auto check = std::make_shared<LazyCheck>();
+    check->keyframe_checked = std::make_unique<std::atomic<uint8_t>[]>(num_keyframes);
+    check->word_checked = std::make_unique<std::atomic<uint8_t>[]>(num_words);
+    index.lazy_ = std::move(check);
+  } else {
+    // Version 1: everything now, with the payload's checksum (whose failure
+    // is reported first).
+    CheckAllBlocks(index.MakeArrays(), entries, nullptr, nullptr, shown,
+                   [&] { flat_file::CheckPayloadChecksum(image, shown); });
+  }
   index.image_ = std::move(image);
   return index;
+}
+
+void BowIndex::VerifyAll() const {
+  if (lazy_ == nullptr) return;
+  CheckAllBlocks(MakeArrays(), word_offsets_[vocabulary_->num_words()], keyframe_sums_, word_sums_,
+                 shown_, [&] { flat_file::CheckPayloadChecksum(image_, shown_); });
+  for (uint32_t i = 0; i < num_keyframes_; ++i)
+    lazy_->keyframe_checked[i].store(1, std::memory_order_release);
+  for (uint32_t w = 0; w < vocabulary_->num_words(); ++w)
+    lazy_->word_checked[w].store(1, std::memory_order_release);
 }
 
 BowVector BowIndex::Transform(const DescriptorBlock& query, std::vector<uint32_t>* nodes) const {
@@ -440,6 +636,7 @@ BowVector BowIndex::KeyframeVector(uint32_t index) const {
     PLACEDB_THROW_INVALID("keyframe index ", index, " is out of range (the index holds ",
                           num_keyframes_, ")");
   }
+  EnsureKeyframeChecked(index);
   const uint64_t begin = vector_offsets_[index], end = vector_offsets_[index + 1];
   BowVector v;
   v.words.assign(vector_words_ + begin, vector_words_ + end);
@@ -452,6 +649,7 @@ Span<uint32_t> BowIndex::DirectNodes(uint32_t index) const {
     PLACEDB_THROW_INVALID("keyframe index ", index, " is out of range (the index holds ",
                           num_keyframes_, ")");
   }
+  EnsureKeyframeChecked(index);
   const uint64_t begin = direct_offsets_[index];
   return Span<uint32_t>(direct_nodes_ + begin,
                         static_cast<size_t>(direct_offsets_[index + 1] - begin));
@@ -478,6 +676,12 @@ std::vector<BowIndex::Scored> BowIndex::Query(const BowVector& query, size_t max
     }
   }
   if (max_results == 0 || num_keyframes_ == 0) return {};
+  // The postings the query reads, checked (once) before they are read.
+  if (lazy_ != nullptr) {
+    for (size_t i = 0; i < n; ++i) {
+      if (query.weights[i] > 0.0f) EnsureWordChecked(query.words[i]);
+    }
+  }
 
   thread_local QueryScratch scratch;
   if (scratch.scores.size() < num_keyframes_) {
@@ -579,6 +783,40 @@ std::vector<BowIndex::Scored> BowIndex::Query(const BowVector& query, size_t max
   }
   std::sort(out.begin(), out.end(), better);
   return out;
+}
+
+void ResealBowIndex(std::string* bytes) {
+  if (bytes->size() < flat_file::kHeaderBytes) return;
+  auto header = flat_file::ReadHeader<BowIndexFileHeader>(bytes->data());
+  if (header.common.version >= 2) {
+    const SectionOffsets at =
+        IndexSections(header.common.version, header.num_keyframes, header.num_entries,
+                      header.num_features, header.num_words, bytes->size());
+    if (!at.layout.overflowed() && at.layout.end() <= bytes->size()) {
+      char* w = bytes->data();
+      const BowIndex::Arrays a =
+          BowIndex::Arrays::At(w, at, header.num_keyframes, header.num_words);
+      auto* keyframe_sums = reinterpret_cast<uint64_t*>(w + at.keyframe_blocks);
+      auto* word_sums = reinterpret_cast<uint64_t*>(w + at.word_blocks);
+      const auto inside = [](uint64_t begin, uint64_t end, uint64_t total) {
+        return begin <= end && end <= total;
+      };
+      // Only the blocks whose offsets lie inside their arrays.
+      for (uint32_t i = 0; i < a.num_keyframes; ++i) {
+        if (inside(a.vector_offsets[i], a.vector_offsets[i + 1], header.num_entries) &&
+            inside(a.direct_offsets[i], a.direct_offsets[i + 1], header.num_features)) {
+          keyframe_sums[i] = a.KeyframeSum(i);
+        }
+      }
+      for (uint32_t word = 0; word < a.num_words; ++word) {
+        if (inside(a.word_offsets[word], a.word_offsets[word + 1], header.num_entries))
+          word_sums[word] = a.WordSum(word);
+      }
+      header.tables_checksum = TablesChecksum(w, at, header.num_keyframes, header.num_words);
+      std::memcpy(w, &header, sizeof(header));
+    }
+  }
+  flat_file::Reseal(bytes);
 }
 
 }  // namespace placedb

@@ -5,16 +5,19 @@
 // direct index (each feature row's vocabulary node at one level), which
 // narrows feature matching to the rows under the same node.
 //
-// The index file, format version 1, little-endian, used in place from a
-// memory map (nothing is parsed or copied):
+// The index file, format version 2 (version 1 is read too), little-endian,
+// used in place from a memory map (nothing is parsed or copied):
 //
 //   header (128 bytes, BowIndexFileHeader; the first 32 are flat_file's CommonHeader)
-//     char[8] magic "PLDBBW\r\n"   u32 format version (1)   u32 header bytes (128)
+//     char[8] magic "PLDBBW\r\n"   u32 format version (2)   u32 header bytes (128)
 //     u64 file bytes               u64 payload checksum: XXH3-64 of bytes [128, file bytes)
 //     32: u64 the vocabulary's checksum (Vocabulary::checksum())
 //     40: u32 keyframes K   u32 direct level   u32 vocabulary words W   u32 reserved (0)
 //     56: u64 entries P (words over all keyframe vectors = postings)   u64 feature rows F
-//     72: reserved (0) up to the header checksum
+//     72: u64 version 2: XXH3-64 of the tables (ids, vector offsets, direct
+//         offsets, word offsets, keyframe blocks, word blocks, in that
+//         order); version 1: 0
+//     80: reserved (0) up to the header checksum
 //     120: u64 header checksum: XXH3-64 of bytes [0, 120)
 //   sections, each at the next multiple of 64 bytes (zero padding between), in this order:
 //     ids             K i32: the database's keyframe ids, in index order
@@ -26,7 +29,20 @@
 //     word offsets    W + 1 u64: word w's postings are [w[w], w[w + 1])
 //     postings        P records of 8 bytes: u32 keyframe index (ascending within a
 //                     word), f32 weight (the keyframe vector's)
-//   and the file ends with the postings.
+//     keyframe blocks version 2: K u64, keyframe i's XXH3-64 of its vector words,
+//                     vector weights and direct nodes (fed in that order)
+//     word blocks     version 2: W u64, word w's XXH3-64 of its postings
+//   and the file ends with the last section.
+//
+// Integrity (version 2): opening checks the header, the section sizes and
+// the tables (their checksum, the offsets, the ids and feature counts
+// against the database), not the arrays they index: a keyframe's vector and
+// direct nodes are checked (block checksum, then the values) the first time
+// they are read, a word's postings the first time a query reads them. So
+// no byte influences an answer unchecked, and the open touches a few MB at
+// 100 000 keyframes instead of the whole file. VerifyAll checks everything
+// now, and that the inverted file is exactly the vectors transposed (what a
+// version 1 file has checked on open).
 #pragma once
 
 #include <cstddef>
@@ -35,12 +51,12 @@
 #include <string>
 #include <vector>
 
-#include "placedb/storage/database.h"
+#include "placedb/retrieval/options.h"
 #include "placedb/retrieval/vocabulary.h"
+#include "placedb/storage/database.h"
 #include "placedb/util/mapped_file.h"
 #include "placedb/util/span.h"
 #include "placedb/util/timer.h"
-#include "placedb/retrieval/options.h"
 
 namespace placedb {
 
@@ -68,7 +84,8 @@ double BowScore(const BowVector& a, const BowVector& b);
 // The index file's magic, format version and header (see the top of this
 // file).
 constexpr char kBowIndexMagic[8] = {'P', 'L', 'D', 'B', 'B', 'W', '\r', '\n'};
-constexpr uint32_t kBowIndexFormatVersion = 1;
+constexpr uint32_t kBowIndexFormatVersion = 2;        // written
+constexpr uint32_t kOldestBowIndexFormatVersion = 1;  // still read
 struct BowIndexFileHeader {
   flat_file::CommonHeader common;
   uint64_t vocabulary_checksum;
@@ -78,9 +95,12 @@ struct BowIndexFileHeader {
   uint32_t reserved0;  // 0
   uint64_t num_entries;
   uint64_t num_features;
-  uint64_t reserved[6];  // 0
+  uint64_t tables_checksum;  // version 2; 0 in version 1
+  uint64_t reserved[5];      // 0
   uint64_t header_checksum;
 };
+
+void ResealBowIndex(std::string* bytes);
 
 // Immutable once made, copyable and movable (the arrays live in one file
 // image, a memory map or memory, that copies share; the vocabulary is
@@ -123,6 +143,12 @@ class BowIndex {
   int direct_level() const { return direct_level_; }
   // The identity of the content (the file's header checksum).
   uint64_t checksum() const { return checksum_; }
+  // The file's format version.
+  uint32_t format_version() const { return format_version_; }
+  // Checks everything not yet checked (see "Integrity" above): the payload
+  // checksum, every keyframe's and word's block, and the transposition.
+  // CorruptDatabase naming the file; nothing to do for a version 1 file.
+  void VerifyAll() const;
   // The bytes of the index file (what Save writes).
   uint64_t file_bytes() const { return image_.size; }
 
@@ -130,7 +156,9 @@ class BowIndex {
   // direct level (one per row, in row order). Throws InvalidArgument
   // when the block's type or width is not the vocabulary's.
   BowVector Transform(const DescriptorBlock& query, std::vector<uint32_t>* nodes = nullptr) const;
-  // A copy of keyframe `index`'s stored vector (index < size()).
+  // A copy of keyframe `index`'s stored vector (index < size()). These
+  // reads, and Query's, check what they read first ("Integrity"):
+  // CorruptDatabase when it is damaged.
   BowVector KeyframeVector(uint32_t index) const;
   // The direct-level node of each feature row of keyframe `index`, in the
   // order of db.Descriptors(index)'s rows; a view valid while the index lives.
@@ -170,11 +198,24 @@ class BowIndex {
     float weight;
   };
 
+  friend void ResealBowIndex(std::string* bytes);
   BowIndex() = default;
   // Checks an image against the vocabulary and database, then points the
   // members into it.
   static BowIndex FromImage(flat_file::Image image, const std::string& shown,
                             std::shared_ptr<const Vocabulary> vocabulary, const Database& db);
+  struct Arrays;
+  Arrays MakeArrays() const;
+  // What checks a version 2 file's blocks on first use (shared by copies).
+  struct LazyCheck;
+  std::shared_ptr<LazyCheck> lazy_;
+  void EnsureKeyframeChecked(uint32_t index) const;
+  void EnsureWordChecked(uint32_t word) const;
+  std::string shown_;
+  uint32_t format_version_ = kBowIndexFormatVersion;
+  std::vector<uint8_t> direct_node_ok_;  // per vocabulary node: a direct level node
+  const uint64_t* keyframe_sums_ = nullptr;
+  const uint64_t* word_sums_ = nullptr;
 
   flat_file::Image image_;
   std::shared_ptr<const Vocabulary> vocabulary_;
@@ -189,5 +230,11 @@ class BowIndex {
   const uint64_t* word_offsets_ = nullptr;
   const Posting* postings_ = nullptr;
 };
+
+// Recomputes the block checksums, the tables checksum (version 2) and the
+// flat-file checksums of an index file image, as far as its header and
+// sections can be read. For tests that damage a file so that the checks
+// themselves, not the checksums, must catch it.
+void ResealBowIndex(std::string* bytes);
 
 }  // namespace placedb

@@ -188,7 +188,7 @@ Database CopyDatabase(
     Keyframe k = db.keyframe(i);
     FeatureSet f;
     f.type = db.feature_type();
-    const Span<cv::KeyPoint> kp = db.Keypoints(i);
+    const std::vector<cv::KeyPoint> kp = db.Keypoints(i);
     f.keypoints.assign(kp.begin(), kp.end());
     const DescriptorBlock b = db.Descriptors(i);
     f.descriptors = cv::Mat(b.rows, 32, CV_8U, const_cast<uint8_t*>(b.data)).clone();
@@ -536,20 +536,28 @@ class BowIndexFileTest : public ::testing::Test {
     direct_nodes_ = layout.Add(features_, 4);
     word_offsets_ = layout.Add(words_ + 1, 8);
     postings_ = layout.Add(entries_, 8);
+    keyframe_blocks_ = layout.Add(keyframes_, 8);
+    word_blocks_ = layout.Add(words_, 8);
     ASSERT_EQ(layout.end(), good_.size());
   }
 
   ::testing::AssertionResult Rejects(const std::string& bytes, const std::string& what) {
     const std::string path = dir_.Write("damaged.bin", bytes);
-    return ThrowsWith<CorruptDatabase>([&] { BowIndex::Open(path, Orb().vocabulary, Orb().db); },
-                                       {path, what});
+    // Opened, and every byte checked (a version 2 file checks its blocks on
+    // first use).
+    return ThrowsWith<CorruptDatabase>(
+        [&] { BowIndex::Open(path, Orb().vocabulary, Orb().db).VerifyAll(); }, {path, what});
   }
   // `good_` with a value written at `offset`, or its header changed by
   // `edit`, resealed.
   template <typename T>
   std::string With(uint64_t offset, T value) const {
-    return flat_file::Patched(good_, offset, value);
+    std::string bytes = good_;
+    std::memcpy(&bytes[offset], &value, sizeof(T));
+    ResealBowIndex(&bytes);
+    return bytes;
   }
+  // The header edited (and nothing recomputed but the flat-file checksums).
   template <typename Edit>
   std::string WithHeader(Edit edit) const {
     auto header = flat_file::ReadHeader<BowIndexFileHeader>(good_.data());
@@ -570,7 +578,7 @@ class BowIndexFileTest : public ::testing::Test {
   uint32_t keyframes_ = 0, words_ = 0;
   uint64_t entries_ = 0, features_ = 0;
   uint64_t vector_offsets_ = 0, vector_words_ = 0, vector_weights_ = 0, direct_nodes_ = 0,
-           word_offsets_ = 0, postings_ = 0;
+           word_offsets_ = 0, postings_ = 0, keyframe_blocks_ = 0, word_blocks_ = 0;
 };
 
 TEST_F(BowIndexFileTest, OpenRejectsTruncatedAndFlippedFiles) {
@@ -598,8 +606,11 @@ TEST_F(BowIndexFileTest, OpenRejectsBadHeaderFields) {
   EXPECT_TRUE(Rejects(WithHeader([](H& h) { h.direct_level = 4; }), "deeper"));
   EXPECT_TRUE(Rejects(WithHeader([](H& h) { ++h.num_words; }), "words"));
   EXPECT_TRUE(Rejects(WithHeader([](H& h) { h.reserved0 = 1; }), "reserved"));
-  EXPECT_TRUE(Rejects(WithHeader([](H& h) { h.reserved[5] = 1; }), "reserved"));
-  EXPECT_TRUE(Rejects(WithHeader([](H& h) { ++h.num_entries; }), "does not match"));
+  EXPECT_TRUE(Rejects(WithHeader([](H& h) { h.reserved[4] = 1; }), "reserved"));
+  EXPECT_TRUE(Rejects(WithHeader([](H& h) { ++h.tables_checksum; }), "tables checksum mismatch"));
+  // One more entry: the sections' padding may absorb it (then the offsets
+  // disagree), or the size does not match.
+  EXPECT_TRUE(Rejects(WithHeader([](H& h) { ++h.num_entries; }), ""));
   EXPECT_TRUE(Rejects(WithHeader([](H& h) { h.num_entries = UINT64_MAX / 2; }), "does not match"));
   EXPECT_TRUE(Rejects(WithHeader([](H& h) { --h.num_features; }), ""));
 }
@@ -627,7 +638,7 @@ TEST_F(BowIndexFileTest, OpenRejectsBadSections) {
   std::string swapped = good_;
   std::swap_ranges(swapped.begin() + first, swapped.begin() + first + 8,
                    swapped.begin() + first + 8);
-  flat_file::Reseal(&swapped);
+  ResealBowIndex(&swapped);
   EXPECT_TRUE(Rejects(swapped, "are not sorted by keyframe"));
   const float weight = At<float>(first + 4);
   EXPECT_TRUE(
@@ -650,12 +661,51 @@ TEST_F(BowIndexFileTest, ResealedRandomDamageIsCaught) {
   for (int trial = 0; trial < 300; ++trial) {
     const uint64_t at = flat_file::kHeaderBytes + rng() % (good_.size() - flat_file::kHeaderBytes);
     if (at >= direct_nodes_ && at < direct_nodes_ + 4 * features_) continue;
+    if (at >= keyframe_blocks_) continue;  // the block checksums: resealing recomputes them
     std::string bytes = good_;
     bytes[at] = static_cast<char>(bytes[at] ^ (1 << (rng() % 8)));
-    flat_file::Reseal(&bytes);
+    ResealBowIndex(&bytes);
     ASSERT_TRUE(Rejects(bytes, "")) << "byte " << at;
   }
   EXPECT_TRUE(Rejects(With<char>(vector_offsets_ - 1, 1), "padding"));
+}
+
+// Version 2 opens without reading the vectors, direct nodes and postings,
+// and checks each block the first time it is read: damage there does not
+// stop the open, but reaches no answer.
+TEST_F(BowIndexFileTest, BlocksAreCheckedOnFirstUse) {
+  uint32_t word = 0;
+  while (WordOffset(word + 1) - WordOffset(word) < 2) ++word;
+  std::string bytes = good_;
+  bytes[postings_ + 8 * WordOffset(word) + 5] ^= 0x01;  // a weight; not resealed
+  const std::string path = dir_.Write("lazy.bin", bytes);
+  const BowIndex index = BowIndex::Open(path, Orb().vocabulary, Orb().db);
+  EXPECT_EQ(index.format_version(), kBowIndexFormatVersion);
+  BowVector other;
+  other.words = {word == 0 ? 1u : 0u};
+  other.weights = {1.0f};
+  EXPECT_NO_THROW(index.Query(other, 5));
+  BowVector damaged;
+  damaged.words = {word};
+  damaged.weights = {1.0f};
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>(
+      [&] { index.Query(damaged, 5); },
+      {path, "the postings of word " + std::to_string(word), "fail their block checksum"}));
+  EXPECT_NO_THROW(index.KeyframeVector(0));
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { index.VerifyAll(); }, "payload checksum mismatch"));
+  // A keyframe's direct nodes.
+  bytes = good_;
+  bytes[direct_nodes_ + 2] ^= 0x40;
+  const std::string path2 = dir_.Write("lazy2.bin", bytes);
+  const BowIndex index2 = BowIndex::Open(path2, Orb().vocabulary, Orb().db);
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { index2.DirectNodes(0); },
+                                          "keyframe 0's entries fail their block checksum"));
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { index2.KeyframeVector(0); },
+                                          "keyframe 0's entries fail their block checksum"));
+  EXPECT_NO_THROW(index2.DirectNodes(1));
+  // Undamaged: VerifyAll passes.
+  EXPECT_NO_THROW(
+      BowIndex::Open(dir_.Write("good.bin", good_), Orb().vocabulary, Orb().db).VerifyAll());
 }
 
 TEST(BowIndex, SurfIndex) {

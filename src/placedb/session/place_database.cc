@@ -1,23 +1,22 @@
 #include "placedb/session/place_database.h"
 
-#include "placedb/builder/builder.h"
-#include "placedb/feature/extractor.h"
-#include "placedb/query/query.h"
-#include "placedb/session/storage_view.h"
-
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
 #include <chrono>
 #include <filesystem>
 #include <mutex>
-#include <thread>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <shared_mutex>
+#include <thread>
 #include <unordered_map>
 #include <unordered_set>
 
+#include "placedb/builder/builder.h"
+#include "placedb/feature/extractor.h"
+#include "placedb/query/query.h"
+#include "placedb/session/storage_view.h"
 #include "placedb/util/check.h"
 #include "placedb/util/fair_shared_mutex.h"
 #include "placedb/util/file_io.h"
@@ -35,11 +34,11 @@ struct PlaceDatabase::Impl {
 
   std::string dir;
   // Fixed at open (read without the lock: Save swaps `db`).
-  bool whole = true;                 // opened on the whole database
-  std::string subset_description;   // what it was opened on, when not
+  bool whole = true;               // opened on the whole database
+  std::string subset_description;  // what it was opened on, when not
   KeyframeSubset subset;
   int descriptor_bytes = 32;
-  bool keyframe_table = false;       // opened without features: no queries
+  bool keyframe_table = false;  // opened without features: no queries
   FeatureType feature_type = FeatureType::kOrb;
   Database db;
   BuildOptions build;
@@ -134,9 +133,9 @@ void SweepDebris(const std::string& dir, const Database& db) {
   }
   for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
     const std::string name = it->path().filename().string();
-    const bool stale_keyframes = (Database::IsKeyframesFileName(name) &&
-                                  name != db.keyframes_file()) ||
-                                 name == "keyframes.writing.bin";
+    const bool stale_keyframes =
+        (Database::IsKeyframesFileName(name) && name != db.keyframes_file()) ||
+        name == "keyframes.writing.bin";
     const bool stale_bow = IsBowIndexFileName(name) && name != bow_name;
     if ((stale_keyframes || stale_bow) && RemoveRegularFile(it->path().string())) ++swept;
   }
@@ -153,7 +152,8 @@ void SweepDebris(const std::string& dir, const Database& db) {
       if (png && named.count(name) == 0 && RemoveRegularFile(it->path().string())) ++swept;
     }
   }
-  if (swept > 0) spdlog::info("{}: removed {} files left by writers that did not finish", dir, swept);
+  if (swept > 0)
+    spdlog::info("{}: removed {} files left by writers that did not finish", dir, swept);
 }
 
 // The manifest's "ids" entry into `impl`; absent (an earlier placedb's
@@ -311,6 +311,20 @@ std::string PlaceDatabase::manifest_json(int indent) const {
 std::string PlaceDatabase::generation() const {
   std::shared_lock<FairSharedMutex> lock(impl_->state);
   return impl_->db.keyframes_file();
+}
+
+PlaceDatabase::VerifyReport PlaceDatabase::Verify() const {
+  if (impl_->keyframe_table) {
+    PLACEDB_THROW_INVALID("a session opened as a keyframe table has no features to verify");
+  }
+  std::shared_lock<FairSharedMutex> lock(impl_->state);
+  impl_->db.VerifyAll();
+  if (impl_->bow) impl_->bow->base().VerifyAll();
+  VerifyReport report;
+  report.keyframes = impl_->db.size();
+  report.keyframes_bytes = impl_->db.keyframes_bytes();
+  report.format_version = impl_->db.file_format_version();
+  return report;
 }
 
 uint64_t PlaceDatabase::keyframes_bytes() const {
@@ -678,7 +692,7 @@ AddReport PlaceDatabase::AddFrames(const std::vector<Frame>& frames, const AddOp
   // The keyframes by source path (copies: other writers may publish
   // meanwhile; the ids are checked again when each frame is added).
   struct Held {
-    int32_t id;          // a keyframe's, or 0 for a frame given earlier
+    int32_t id;  // a keyframe's, or 0 for a frame given earlier
     uint64_t hash;
     size_t pending = 0;  // that earlier frame's place in `todo`
   };
@@ -746,9 +760,9 @@ AddReport PlaceDatabase::AddFrames(const std::vector<Frame>& frames, const AddOp
   for (size_t j = 0; j < todo.size(); ++j) {
     const size_t i = todo[j];
     const Frame& f = frames[i];
-    int64_t id = options.ids_from_names   ? name_ids[i]
-                 : options.id_offset > 0  ? int64_t{options.id_offset} + static_cast<int64_t>(i)
-                                          : next_free + static_cast<int64_t>(j);
+    int64_t id = options.ids_from_names  ? name_ids[i]
+                 : options.id_offset > 0 ? int64_t{options.id_offset} + static_cast<int64_t>(i)
+                                         : next_free + static_cast<int64_t>(j);
     if (id > INT32_MAX) {
       PLACEDB_THROW_INVALID("frame ", f.id, " (", f.image_path, ") would get id ", id,
                             ", above the largest, 2^31 - 1",
@@ -759,21 +773,21 @@ AddReport PlaceDatabase::AddFrames(const std::vector<Frame>& frames, const AddOp
       std::shared_lock<FairSharedMutex> lock(impl_->state);
       const int index = impl_->db.IndexOfId(id32);
       if (index >= 0) {
-        PLACEDB_THROW_INVALID(
-            "frame ", f.id, " (", f.image_path, ") would get id ", id32, ", which is taken by ",
-            impl_->removed[static_cast<size_t>(index)] ? "a keyframe removed in this session"
-                                                       : "the keyframe of " +
-                                                             impl_->db.keyframe(index).source,
-            options.ids_from_names ? " (`ids_from_names`)"
-            : options.id_offset > 0 ? " (choose another `id_offset`)"
-                                    : "");
+        PLACEDB_THROW_INVALID("frame ", f.id, " (", f.image_path, ") would get id ", id32,
+                              ", which is taken by ",
+                              impl_->removed[static_cast<size_t>(index)]
+                                  ? "a keyframe removed in this session"
+                                  : "the keyframe of " + impl_->db.keyframe(index).source,
+                              options.ids_from_names  ? " (`ids_from_names`)"
+                              : options.id_offset > 0 ? " (choose another `id_offset`)"
+                                                      : "");
       }
     }
     if (!taken.insert(id32).second) {
-      PLACEDB_THROW_INVALID("frame ", f.id, " (", f.image_path, ") would get id ", id32,
-                            ", which another frame given gets too",
-                            options.ids_from_names ? " (`ids_from_names`: two names of one number)"
-                                                   : "");
+      PLACEDB_THROW_INVALID(
+          "frame ", f.id, " (", f.image_path, ") would get id ", id32,
+          ", which another frame given gets too",
+          options.ids_from_names ? " (`ids_from_names`: two names of one number)" : "");
     }
     report.ids[i] = id32;
   }

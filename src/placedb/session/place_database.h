@@ -193,6 +193,20 @@ class PlaceDatabase {
   // completed by id_summary() (count, first, last, next_free, removed: null
   // when not recorded, removed_since).
   std::string info_json(int indent = -1) const;
+  // Checks every byte of the database now: the keyframe file's features and
+  // whole-image rows, and the bag-of-words index's blocks, which version 3
+  // keyframe files and version 2 index files otherwise check when they are
+  // first used (storage/database.h and retrieval/bow_index.h, "Integrity");
+  // and the inverted file against the keyframe vectors. What `placedb
+  // verify` runs. CorruptDatabase naming the
+  // first damage found; a session opened as a keyframe table has no
+  // features to check (InvalidArgument).
+  struct VerifyReport {
+    size_t keyframes = 0;          // whose features were checked
+    uint64_t keyframes_bytes = 0;  // the keyframe file
+    uint32_t format_version = 0;   // the keyframe file's
+  };
+  VerifyReport Verify() const;
   // Path of a keyframe's stored PNG ("" when the database keeps none).
   std::string StoredImagePath(const Keyframe& keyframe) const;
 

@@ -1,15 +1,18 @@
 #include "placedb/storage/database.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstddef>
 #include <cstring>
 #include <filesystem>
 #include <functional>
+#include <mutex>
 #include <numeric>
 #include <type_traits>
 #include <unordered_set>
 
+#include "placedb/storage/compact_keypoint.h"
 #include "placedb/storage/keyframe_file.h"
 #include "placedb/util/check.h"
 #include "placedb/util/checksum.h"
@@ -20,6 +23,25 @@
 namespace placedb {
 namespace fs = std::filesystem;
 namespace kf = keyframe_file;
+namespace ckp = compact_keypoint;
+
+// What checks a version 3 file's features when they are first used
+// (Database::Keypoints, "Integrity"): each kept keyframe's two block
+// checksums, a flag per keyframe once checked, and the sections VerifyAll
+// checks whole.
+struct Database::LazyCheck {
+  struct Section {
+    const char* data = nullptr;
+    uint64_t bytes = 0, checksum = 0;
+  };
+  std::string shown;                       // the file, in errors
+  std::vector<uint64_t> sums;              // 2 per kept keyframe: keypoints, descriptors
+  std::unique_ptr<std::atomic<uint8_t>[]>  // 1 once keyframe i is checked
+      checked;
+  Section keypoints, descriptors, whole_image;
+  std::atomic<bool> whole_image_checked{false};
+  std::mutex whole_image_mutex;
+};
 
 // Keypoints are used in place from the file: its records are cv::KeyPoint.
 static_assert(std::is_standard_layout<cv::KeyPoint>::value, "cv::KeyPoint layout");
@@ -112,8 +134,9 @@ std::string CheckKeyframe(const Keyframe& k) {
 
 bool IsStoredImageName(const std::string& name) {
   constexpr size_t kPrefix = sizeof(kStoredImageFolder) - 1;
-  return name.empty() || (name.size() > kPrefix + 1 && name.compare(0, kPrefix, kStoredImageFolder) == 0 &&
-                          name[kPrefix] == '/' && IsPlainFileName(name.substr(kPrefix + 1)));
+  return name.empty() ||
+         (name.size() > kPrefix + 1 && name.compare(0, kPrefix, kStoredImageFolder) == 0 &&
+          name[kPrefix] == '/' && IsPlainFileName(name.substr(kPrefix + 1)));
 }
 
 std::string CheckKeypoints(const cv::KeyPoint* keypoints, size_t count, cv::Size image_size) {
@@ -128,8 +151,7 @@ std::string CheckKeypoints(const cv::KeyPoint* keypoints, size_t count, cv::Size
         !std::isfinite(kp.angle) || !std::isfinite(kp.response)) {
       return "has a keypoint that is not finite (keypoint " + std::to_string(i) + ")";
     }
-    if (!(kp.pt.x >= -tolerance && kp.pt.x <= max_x && kp.pt.y >= -tolerance &&
-          kp.pt.y <= max_y)) {
+    if (!(kp.pt.x >= -tolerance && kp.pt.x <= max_x && kp.pt.y >= -tolerance && kp.pt.y <= max_y)) {
       return "has a keypoint outside its " +
              (known ? "stored image (" + std::to_string(image_size.width) + "x" +
                           std::to_string(image_size.height) + ")"
@@ -156,10 +178,11 @@ bool AllFinite(const float* values, size_t count) {
 }
 
 Database::Database(FeatureType type, int descriptor_bytes, int whole_image_dims)
-    : feature_type_(type), descriptor_bytes_(descriptor_bytes), whole_image_dims_(whole_image_dims) {
-  if (whole_image_dims != 0 &&
-      (whole_image_dims < static_cast<int>(kf::kMinWholeImageDims) ||
-       whole_image_dims > static_cast<int>(kf::kMaxWholeImageDims))) {
+    : feature_type_(type),
+      descriptor_bytes_(descriptor_bytes),
+      whole_image_dims_(whole_image_dims) {
+  if (whole_image_dims != 0 && (whole_image_dims < static_cast<int>(kf::kMinWholeImageDims) ||
+                                whole_image_dims > static_cast<int>(kf::kMaxWholeImageDims))) {
     PLACEDB_THROW_INVALID("whole-image rows of ", whole_image_dims, " values (0, or [",
                           kf::kMinWholeImageDims, ", ", kf::kMaxWholeImageDims, "])");
   }
@@ -176,13 +199,98 @@ int Database::IndexOfId(int32_t id) const {
   return it == index_of_id_.end() ? -1 : it->second;
 }
 
-Span<cv::KeyPoint> Database::Keypoints(size_t index) const {
+std::vector<cv::KeyPoint> Database::Keypoints(size_t index) const {
   if (!has_features_) PLACEDB_THROW_INVALID(kNoFeatures);
-  return Span<cv::KeyPoint>(KeypointData() + row_offset_[index], feature_count_[index]);
+  EnsureChecked(index);
+  const size_t count = feature_count_[index];
+  if (mapping_ && mapped_compact_keypoints_ != nullptr) {
+    std::vector<cv::KeyPoint> out(count);
+    const char* records = mapped_compact_keypoints_ + row_offset_[index] * ckp::kRecordBytes;
+    const int bits = ckp::FractionBits(keyframes_[index].stored_size);  // checked on open
+    for (size_t f = 0; f < count; ++f) ckp::Decode(records + f * ckp::kRecordBytes, bits, &out[f]);
+    return out;
+  }
+  const cv::KeyPoint* first = KeypointData() + row_offset_[index];
+  return std::vector<cv::KeyPoint>(first, first + count);
+}
+
+bool Database::FeaturesChecked(size_t index) const {
+  return lazy_ == nullptr || lazy_->checked[index].load(std::memory_order_acquire) != 0;
+}
+
+void Database::CheckFeatures(size_t index) const {
+  const LazyCheck& lazy = *lazy_;
+  const Keyframe& k = keyframes_[index];
+  auto fail = [&](const auto&... what) {
+    PLACEDB_THROW_CORRUPT(lazy.shown, ": keyframe ", k.id, what...);
+  };
+  const uint64_t first = row_offset_[index];
+  const size_t count = feature_count_[index];
+  const char* records = mapped_compact_keypoints_ + first * ckp::kRecordBytes;
+  const uint8_t* rows = mapped_descriptors_ + first * static_cast<uint64_t>(descriptor_bytes_);
+  if (Checksum64(records, count * ckp::kRecordBytes) != lazy.sums[2 * index])
+    fail(": its keypoints fail their block checksum (the file is corrupted)");
+  if (Checksum64(rows, count * static_cast<size_t>(descriptor_bytes_)) != lazy.sums[2 * index + 1])
+    fail(": its descriptors fail their block checksum (the file is corrupted)");
+  std::vector<cv::KeyPoint> keypoints(count);
+  const int bits = ckp::FractionBits(k.stored_size);
+  for (size_t f = 0; f < count; ++f) {
+    if (!ckp::Decode(records + f * ckp::kRecordBytes, bits, &keypoints[f]))
+      fail(": keypoint ", f, " has an impossible angle code");
+  }
+  const std::string bad = CheckKeypoints(keypoints.data(), count, k.stored_size);
+  if (!bad.empty()) fail(" ", bad);
+  if (feature_type_ == FeatureType::kSurf) {
+    for (size_t f = 0; f < count; ++f) {
+      if ((keypoints[f].class_id >= 0) != (f < positive_count_[index]))
+        fail(": keypoints are not grouped by Laplacian sign");
+    }
+    if (!AllFinite(reinterpret_cast<const float*>(rows), count * descriptor_bytes_ / 4))
+      fail(" has a SURF descriptor value that is not finite");
+  }
+  lazy.checked[index].store(1, std::memory_order_release);
+}
+
+void Database::EnsureWholeImageChecked() const {
+  if (lazy_ == nullptr || mapped_whole_image_ == nullptr) return;
+  LazyCheck& lazy = *lazy_;
+  if (lazy.whole_image_checked.load(std::memory_order_acquire)) return;
+  const std::lock_guard<std::mutex> lock(lazy.whole_image_mutex);
+  if (lazy.whole_image_checked.load(std::memory_order_relaxed)) return;
+  const LazyCheck::Section& w = lazy.whole_image;
+  if (Checksum64(w.data, w.bytes) != w.checksum)
+    PLACEDB_THROW_CORRUPT(lazy.shown,
+                          ": whole-image section checksum mismatch (the file is corrupted)");
+  if (std::memchr(w.data + kf::kWholeImagePreambleBytes, 0x80,
+                  w.bytes - kf::kWholeImagePreambleBytes) != nullptr) {
+    PLACEDB_THROW_CORRUPT(lazy.shown,
+                          ": the whole-image section holds -128 (values are in [-127, 127])");
+  }
+  lazy.whole_image_checked.store(true, std::memory_order_release);
+}
+
+void Database::VerifyAll() const {
+  if (lazy_ == nullptr) return;
+  for (const auto& [section, what] : {std::make_pair(&lazy_->keypoints, "keypoint"),
+                                      std::make_pair(&lazy_->descriptors, "descriptor")}) {
+    if (Checksum64(section->data, section->bytes) != section->checksum) {
+      PLACEDB_THROW_CORRUPT(lazy_->shown, ": ", what,
+                            " section checksum mismatch (the file is corrupted)");
+    }
+  }
+  if (lazy_->whole_image.data != nullptr) {
+    const LazyCheck::Section& w = lazy_->whole_image;
+    if (Checksum64(w.data, w.bytes) != w.checksum)
+      PLACEDB_THROW_CORRUPT(lazy_->shown,
+                            ": whole-image section checksum mismatch (the file is corrupted)");
+  }
+  EnsureWholeImageChecked();
+  for (size_t i = 0; i < keyframes_.size(); ++i) EnsureChecked(i);
 }
 
 DescriptorBlock Database::Descriptors(size_t index) const {
   if (!has_features_) PLACEDB_THROW_INVALID(kNoFeatures);
+  EnsureChecked(index);
   DescriptorBlock block;
   block.type = feature_type_;
   block.rows = static_cast<int>(feature_count_[index]);
@@ -196,11 +304,13 @@ DescriptorBlock Database::Descriptors(size_t index) const {
 const int8_t* Database::WholeImageData() const {
   if (whole_image_dims_ == 0) return nullptr;
   if (!has_features_) PLACEDB_THROW_INVALID(kNoFeatures);
+  EnsureWholeImageChecked();
   return mapped_whole_image_ != nullptr ? mapped_whole_image_ : whole_image_.data();
 }
 
 void Database::CopyOnWrite() {
   if (mapped_whole_image_ != nullptr) {
+    EnsureWholeImageChecked();
     whole_image_.assign(mapped_whole_image_,
                         mapped_whole_image_ + keyframes_.size() * whole_image_dims_);
     mapped_whole_image_ = nullptr;
@@ -213,8 +323,19 @@ void Database::CopyOnWrite() {
   std::vector<uint64_t> offsets;
   for (size_t i = 0; i < keyframes_.size(); ++i) {
     offsets.push_back(keypoints.size());
-    const Span<cv::KeyPoint> kp = Keypoints(i);
-    keypoints.insert(keypoints.end(), kp.begin(), kp.end());
+    // Owned keypoints are what a version 3 file keeps (a version 2 file's
+    // are quantized here).
+    const int bits = ckp::FractionBits(keyframes_[i].stored_size);
+    for (const cv::KeyPoint& kp : Keypoints(i)) {
+      const std::string why =
+          bits < 0 ? "a stored image wider than 65533 px" : ckp::WhyNotEncodable(kp, bits);
+      if (!why.empty()) {
+        PLACEDB_THROW_INVALID("keyframe ", keyframes_[i].id, " of this version ",
+                              file_format_version_, " database has ", why,
+                              ", which format version ", kf::kVersion, " cannot keep");
+      }
+      keypoints.push_back(ckp::Quantized(kp, bits));
+    }
     const DescriptorBlock block = Descriptors(i);
     descriptors.insert(descriptors.end(), block.data,
                        block.data + static_cast<size_t>(block.rows) * block.row_bytes);
@@ -224,7 +345,9 @@ void Database::CopyOnWrite() {
   row_offset_ = std::move(offsets);
   mapping_.reset();
   mapped_keypoints_ = nullptr;
+  mapped_compact_keypoints_ = nullptr;
   mapped_descriptors_ = nullptr;
+  lazy_.reset();
 }
 
 void Database::AddKeyframe(Keyframe keyframe, const FeatureSet& features) {
@@ -266,8 +389,8 @@ void Database::AddKeyframe(Keyframe keyframe, const FeatureSet& features) {
                             whole_image_dims_, " values per keyframe (`whole_image`)");
     }
     if (w.type() != CV_8SC1 || w.rows != 1 || w.cols != whole_image_dims_ || !w.isContinuous()) {
-      PLACEDB_THROW_INVALID("keyframe ", keyframe.id, ": its whole-image descriptor is ",
-                            w.rows, " x ", w.cols, " ", cv::typeToString(w.type()),
+      PLACEDB_THROW_INVALID("keyframe ", keyframe.id, ": its whole-image descriptor is ", w.rows,
+                            " x ", w.cols, " ", cv::typeToString(w.type()),
                             ", the database keeps 1 x ", whole_image_dims_, " CV_8SC1 rows");
     }
     if (std::memchr(w.data, 0x80, static_cast<size_t>(whole_image_dims_)) != nullptr) {
@@ -278,6 +401,17 @@ void Database::AddKeyframe(Keyframe keyframe, const FeatureSet& features) {
   const std::string bad_keypoints =
       CheckKeypoints(features.keypoints.data(), features.keypoints.size(), keyframe.stored_size);
   if (!bad_keypoints.empty()) PLACEDB_THROW_INVALID("keyframe ", keyframe.id, " ", bad_keypoints);
+  const int bits = ckp::FractionBits(keyframe.stored_size);
+  if (bits < 0 && !features.keypoints.empty()) {
+    PLACEDB_THROW_INVALID("keyframe ", keyframe.id, ": a stored image of ",
+                          keyframe.stored_size.width, " x ", keyframe.stored_size.height,
+                          " cannot hold keypoints (a side of at most 65533 px can)");
+  }
+  for (size_t f = 0; f < features.keypoints.size(); ++f) {
+    const std::string why = ckp::WhyNotEncodable(features.keypoints[f], bits);
+    if (!why.empty())
+      PLACEDB_THROW_INVALID("keyframe ", keyframe.id, " has ", why, " (keypoint ", f, ")");
+  }
   if (feature_type_ == FeatureType::kSurf && rows > 0) {
     for (int r = 0; r < rows; ++r) {
       if (!AllFinite(features.descriptors.ptr<float>(r), descriptor_bytes_ / 4)) {
@@ -304,7 +438,7 @@ void Database::AddKeyframe(Keyframe keyframe, const FeatureSet& features) {
   feature_count_.push_back(static_cast<uint32_t>(rows));
   positive_count_.push_back(positive);
   for (const int r : order) {
-    keypoints_.push_back(features.keypoints[r]);
+    keypoints_.push_back(ckp::Quantized(features.keypoints[r], bits));
     const uint8_t* row = features.descriptors.ptr<uint8_t>(r);
     descriptors_.insert(descriptors_.end(), row, row + descriptor_bytes_);
   }
@@ -346,8 +480,7 @@ void Database::Reserve(size_t keyframes, size_t features) {
 FeatureSet Database::Features(size_t index) const {
   FeatureSet f;
   f.type = feature_type_;
-  const Span<cv::KeyPoint> kp = Keypoints(index);
-  f.keypoints.assign(kp.begin(), kp.end());
+  f.keypoints = Keypoints(index);
   const DescriptorBlock block = Descriptors(index);
   const int cols = feature_type_ == FeatureType::kOrb ? descriptor_bytes_ : descriptor_bytes_ / 4;
   const int type = feature_type_ == FeatureType::kOrb ? CV_8U : CV_32F;
@@ -410,8 +543,21 @@ Database::SaveResult Database::Save(const std::string& dir) const {
   }
   // The whole-image section only with the channel: files without it are
   // what earlier placedb versions read.
-  const uint32_t num_sections = whole_image_dims_ > 0 ? 6 : 5;
-  char header[kf::kHeaderBytes + 6 * kf::kSectionEntryBytes] = {};
+  const uint32_t num_sections = whole_image_dims_ > 0 ? 7 : 6;
+  char header[kf::kHeaderBytes + 7 * kf::kSectionEntryBytes] = {};
+  // Every keypoint must fit its compact record (owned keypoints do: they
+  // are quantized when added; a version 2 file's may not).
+  for (size_t i = 0; i < keyframes_.size(); ++i) {
+    const int bits = ckp::FractionBits(keyframes_[i].stored_size);
+    for (const cv::KeyPoint& kp : Keypoints(i)) {
+      const std::string why =
+          bits < 0 ? "a stored image wider than 65533 px" : ckp::WhyNotEncodable(kp, bits);
+      if (!why.empty()) {
+        PLACEDB_THROW_INVALID("keyframe ", keyframes_[i].id, " has ", why,
+                              ", which format version ", kf::kVersion, " cannot keep");
+      }
+    }
+  }
 
   // Written to a temporary file, committed under its content name.
   AtomicFileWriter out((fs::path(dir) / "keyframes.bin").string());
@@ -490,16 +636,37 @@ Database::SaveResult Database::Save(const std::string& dir) const {
       if (!keyframes_.empty()) put(WholeImageData(), keyframes_.size() * whole_image_dims_);
     });
   }
+  // Each keyframe's two block checksums, taken as its records are written.
+  std::vector<uint64_t> block_sums(2 * keyframes_.size());
   const Written keypoints = section([&](auto put) {
+    char preamble[kf::kCompactKeypointPreambleBytes] = {};
+    SetField<uint32_t>(preamble, 0, static_cast<uint32_t>(ckp::kRecordBytes));
+    SetField<uint32_t>(preamble, 4, ckp::kPositionScheme);
+    put(preamble, sizeof(preamble));
+    std::vector<char> records;
     for (size_t i = 0; i < keyframes_.size(); ++i) {
-      const Span<cv::KeyPoint> kp = Keypoints(i);
-      put(kp.data(), kp.size() * sizeof(cv::KeyPoint));
+      const std::vector<cv::KeyPoint> kp = Keypoints(i);
+      records.resize(kp.size() * ckp::kRecordBytes);
+      const int bits = ckp::FractionBits(keyframes_[i].stored_size);
+      for (size_t f = 0; f < kp.size(); ++f)
+        ckp::Encode(kp[f], bits, records.data() + f * ckp::kRecordBytes);
+      block_sums[2 * i] = Checksum64(records.data(), records.size());
+      put(records.data(), records.size());
     }
   });
   const Written descriptors = section([&](auto put) {
     for (size_t i = 0; i < keyframes_.size(); ++i) {
       const DescriptorBlock b = Descriptors(i);
-      put(b.data, static_cast<size_t>(b.rows) * b.row_bytes);
+      const size_t bytes = static_cast<size_t>(b.rows) * b.row_bytes;
+      block_sums[2 * i + 1] = Checksum64(b.data, bytes);
+      put(b.data, bytes);
+    }
+  });
+  const Written feature_blocks = section([&](auto put) {
+    for (const uint64_t sum : block_sums) {
+      char h[8];
+      SetField<uint64_t>(h, 0, sum);
+      put(h, sizeof(h));
     }
   });
   const uint64_t file_bytes = out.position();
@@ -513,12 +680,11 @@ Database::SaveResult Database::Save(const std::string& dir) const {
   SetField<uint64_t>(header, 32, keyframes_.size());
   SetField<uint64_t>(header, 40, num_features_);
   SetField<uint64_t>(header, 48, file_bytes);
-  const std::pair<uint32_t, Written> table[] = {{kf::kKeyframes, keyframes},
-                                                {kf::kStrings, strings},
-                                                {kf::kKeypoints, keypoints},
-                                                {kf::kDescriptors, descriptors},
-                                                {kf::kSourceHashes, source_hashes},
-                                                {kf::kWholeImage, whole_image}};
+  const std::pair<uint32_t, Written> table[] = {
+      {kf::kKeyframes, keyframes},          {kf::kStrings, strings},
+      {kf::kCompactKeypoints, keypoints},   {kf::kDescriptors, descriptors},
+      {kf::kFeatureBlocks, feature_blocks}, {kf::kSourceHashes, source_hashes},
+      {kf::kWholeImage, whole_image}};
   for (uint32_t s = 0; s < num_sections; ++s) {
     char* e = header + kf::kHeaderBytes + s * kf::kSectionEntryBytes;
     SetField<uint32_t>(e, 0, table[s].first);
@@ -569,6 +735,44 @@ uint64_t keyframe_file::Reseal(std::string* bytes, bool fix_size) {
   if (kHeaderBytes + static_cast<size_t>(num_sections) * kSectionEntryBytes > bytes->size())
     return 0;
   if (fix_size) SetField<uint64_t>(b, 48, bytes->size());
+  const uint64_t size = bytes->size();
+  // Version 3: the block checksums of the keyframes whose records, keypoint
+  // and descriptor ranges lie inside their sections.
+  uint64_t offsets[kLastKind + 1] = {}, sizes[kLastKind + 1] = {};
+  for (uint32_t s = 0; s < num_sections; ++s) {
+    const char* e = b + kHeaderBytes + s * kSectionEntryBytes;
+    const uint32_t kind = Field<uint32_t>(e, 0);
+    const uint64_t offset = Field<uint64_t>(e, 8), bytes_in = Field<uint64_t>(e, 16);
+    if (kind <= kLastKind && offset <= size && bytes_in <= size - offset) {
+      offsets[kind] = offset;
+      sizes[kind] = bytes_in;
+    }
+  }
+  const uint64_t row_bytes = Field<uint32_t>(b, 20);
+  if (Field<uint32_t>(b, 8) == 3 && sizes[kKeyframes] > 0 && sizes[kFeatureBlocks] > 0 &&
+      sizes[kCompactKeypoints] >= kCompactKeypointPreambleBytes && row_bytes > 0) {
+    const uint64_t records = std::min(sizes[kKeyframes] / kKeyframeRecordBytes,
+                                      sizes[kFeatureBlocks] / kFeatureBlockEntryBytes);
+    const uint64_t keypoint_rows =
+        (sizes[kCompactKeypoints] - kCompactKeypointPreambleBytes) / compact_keypoint::kRecordBytes;
+    const uint64_t descriptor_rows = sizes[kDescriptors] / row_bytes;
+    for (uint64_t i = 0; i < records; ++i) {
+      const char* r = b + offsets[kKeyframes] + i * kKeyframeRecordBytes;
+      const uint64_t first = Field<uint64_t>(r, rec::kFeatureOffset);
+      const uint64_t count = Field<uint32_t>(r, rec::kFeatureCount);
+      if (first > keypoint_rows || count > keypoint_rows - first || first > descriptor_rows ||
+          count > descriptor_rows - first) {
+        continue;
+      }
+      char* entry = b + offsets[kFeatureBlocks] + i * kFeatureBlockEntryBytes;
+      SetField<uint64_t>(entry, 0,
+                         Checksum64(b + offsets[kCompactKeypoints] + kCompactKeypointPreambleBytes +
+                                        first * compact_keypoint::kRecordBytes,
+                                    count * compact_keypoint::kRecordBytes));
+      SetField<uint64_t>(
+          entry, 8, Checksum64(b + offsets[kDescriptors] + first * row_bytes, count * row_bytes));
+    }
+  }
   for (uint32_t s = 0; s < num_sections; ++s) {
     char* e = b + kHeaderBytes + s * kSectionEntryBytes;
     const uint64_t offset = Field<uint64_t>(e, 8), size = Field<uint64_t>(e, 16);
@@ -596,9 +800,10 @@ void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const 
     fail("not a placedb keyframe file (wrong magic)");
   if (size < kf::kHeaderBytes) fail("file is truncated (", size, " bytes)");
   const uint32_t version = Field<uint32_t>(b, 8);
-  if (version != kf::kVersion)
-    fail("format version ", version, " is not supported (this placedb reads version ", kf::kVersion,
-         ")");
+  if (version < kf::kOldestVersion || version > kf::kVersion)
+    fail("format version ", version, " is not supported (this placedb reads versions ",
+         kf::kOldestVersion, " to ", kf::kVersion, ")");
+  const bool compact = version >= 3;
   if (Field<uint32_t>(b, 12) != kf::kHeaderBytes) fail("bad header size ", Field<uint32_t>(b, 12));
   const uint64_t file_bytes = Field<uint64_t>(b, 48);
   if (file_bytes != size) {
@@ -631,7 +836,8 @@ void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const 
   // Bounds that keep every product below below 2^64.
   if (num_keyframes > size / kf::kKeyframeRecordBytes)
     fail("keyframe count ", num_keyframes, " exceeds the file");
-  if (num_features > size / kf::kKeypointRecordBytes || num_features > size / row_bytes)
+  const uint64_t keypoint_bytes = compact ? ckp::kRecordBytes : kf::kKeypointRecordBytes;
+  if (num_features > size / keypoint_bytes || num_features > size / row_bytes)
     fail("feature count ", num_features, " exceeds the file");
 
   // The section table: known kinds once each, aligned, inside the file, not
@@ -640,7 +846,7 @@ void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const 
     uint64_t offset = 0, bytes = 0, checksum = 0;
     bool present = false;
   };
-  Section sections[kf::kWholeImage + 1];
+  Section sections[kf::kLastKind + 1];
   std::vector<std::pair<uint64_t, uint64_t>> extents;
   for (uint32_t s = 0; s < num_sections; ++s) {
     const char* e = b + kf::kHeaderBytes + s * kf::kSectionEntryBytes;
@@ -651,7 +857,7 @@ void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const 
     if (offset < table_end || offset > size || bytes > size - offset)
       fail("section ", s, " (offset ", offset, ", ", bytes, " bytes) lies outside the file");
     extents.emplace_back(offset, bytes);
-    if (kind >= kf::kKeyframes && kind <= kf::kWholeImage) {
+    if (kind >= kf::kKeyframes && kind <= kf::kLastKind) {
       if (sections[kind].present) fail("section kind ", kind, " appears twice");
       sections[kind] = {offset, bytes, Field<uint64_t>(e, 24), true};
     }
@@ -660,17 +866,44 @@ void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const 
   for (size_t i = 1; i < extents.size(); ++i) {
     if (extents[i].first < extents[i - 1].first + extents[i - 1].second) fail("sections overlap");
   }
-  for (uint32_t kind = kf::kKeyframes; kind <= kf::kDescriptors; ++kind) {
+  // Each version's keypoints, and only its own.
+  const uint32_t keypoint_kind = compact ? kf::kCompactKeypoints : kf::kKeypoints;
+  for (const uint32_t kind : {uint32_t{kf::kKeyframes}, uint32_t{kf::kStrings}, keypoint_kind,
+                              uint32_t{kf::kDescriptors}}) {
     if (!sections[kind].present) fail("section kind ", kind, " is missing");
+  }
+  if (compact && !sections[kf::kFeatureBlocks].present)
+    fail("section kind ", kf::kFeatureBlocks, " is missing");
+  for (const uint32_t kind :
+       compact ? std::vector<uint32_t>{kf::kKeypoints}
+               : std::vector<uint32_t>{kf::kCompactKeypoints, kf::kFeatureBlocks}) {
+    if (sections[kind].present)
+      fail("section kind ", kind, " does not belong in a version ", version, " file");
   }
   const Section& keyframes = sections[kf::kKeyframes];
   const Section& strings = sections[kf::kStrings];
-  const Section& keypoints = sections[kf::kKeypoints];
+  const Section& keypoints = sections[keypoint_kind];
   const Section& descriptors = sections[kf::kDescriptors];
+  const Section& feature_blocks = sections[kf::kFeatureBlocks];
   if (keyframes.bytes != num_keyframes * kf::kKeyframeRecordBytes)
     fail("the keyframe section's size does not match ", num_keyframes, " keyframes");
-  if (keypoints.bytes != num_features * kf::kKeypointRecordBytes)
+  const uint64_t keypoint_preamble = compact ? kf::kCompactKeypointPreambleBytes : 0;
+  if (keypoints.bytes != keypoint_preamble + num_features * keypoint_bytes)
     fail("the keypoint section's size does not match ", num_features, " features");
+  if (compact) {
+    const char* preamble = b + keypoints.offset;
+    if (Field<uint32_t>(preamble, 0) != ckp::kRecordBytes ||
+        Field<uint32_t>(preamble, 4) != ckp::kPositionScheme) {
+      fail("compact keypoints of ", Field<uint32_t>(preamble, 0), " bytes with position scheme ",
+           Field<uint32_t>(preamble, 4), " (this placedb reads ", ckp::kRecordBytes,
+           " bytes, scheme ", ckp::kPositionScheme, ")");
+    }
+    for (size_t at = 8; at < kf::kCompactKeypointPreambleBytes; ++at) {
+      if (preamble[at] != 0) fail("the compact keypoint section's reserved bytes are not 0");
+    }
+    if (feature_blocks.bytes != num_keyframes * kf::kFeatureBlockEntryBytes)
+      fail("the feature block section's size does not match ", num_keyframes, " keyframes");
+  }
   if (descriptors.bytes != num_features * row_bytes)
     fail("the descriptor section's size does not match ", num_features, " features");
   // Optional (files of earlier versions lack it: hashes not recorded).
@@ -686,8 +919,8 @@ void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const 
     const char* preamble = b + whole_image.offset;
     whole_image_dims = Field<uint32_t>(preamble, 0);
     if (whole_image_dims < kf::kMinWholeImageDims || whole_image_dims > kf::kMaxWholeImageDims)
-      fail("whole-image rows of ", whole_image_dims, " values (expected [",
-           kf::kMinWholeImageDims, ", ", kf::kMaxWholeImageDims, "])");
+      fail("whole-image rows of ", whole_image_dims, " values (expected [", kf::kMinWholeImageDims,
+           ", ", kf::kMaxWholeImageDims, "])");
     for (size_t at = 4; at < kf::kWholeImagePreambleBytes; ++at) {
       if (preamble[at] != 0) fail("the whole-image section's reserved bytes are not 0");
     }
@@ -707,12 +940,15 @@ void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const 
   verify(keyframes, "keyframe section");
   verify(strings, "string section");
   if (source_hashes.present) verify(source_hashes, "source hash section");
+  if (compact && with_features) verify(feature_blocks, "feature block section");
   const char* whole_image_rows = b + whole_image.offset + kf::kWholeImagePreambleBytes;
-  if (whole_image.present && with_features) {
+  const auto verify_whole_image = [&] {
     verify(whole_image, "whole-image section");
     if (std::memchr(whole_image_rows, 0x80, whole_image.bytes - kf::kWholeImagePreambleBytes))
       fail("the whole-image section holds -128 (values are in [-127, 127])");
-  }
+  };
+  // Version 3 checks the rows used in place on first use (below).
+  if (whole_image.present && with_features && !compact) verify_whole_image();
 
   // Keyframe records: every value checked; ranges back to back.
   std::vector<Keyframe> all(num_keyframes);
@@ -769,6 +1005,9 @@ void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const 
       k.source_hash = Field<uint64_t>(b + source_hashes.offset, static_cast<size_t>(8 * i));
     const std::string reason = CheckKeyframe(k);
     if (!reason.empty()) fail("keyframe record ", i, " (id ", k.id, "): ", reason);
+    if (compact && counts[i] > 0 && ckp::FractionBits(k.stored_size) < 0)
+      fail("keyframe record ", i, " (id ", k.id,
+           "): a stored image wider than 65533 px holds keypoints");
   }
   if (expected_offset != num_features)
     fail("the keyframes own ", expected_offset, " features but the file holds ", num_features);
@@ -777,7 +1016,8 @@ void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const 
   const std::vector<size_t> keep = SelectKeyframes(options.subset, num_keyframes, ids);
   const auto* file_keypoints =
       reinterpret_cast<const cv::KeyPoint*>(b + keypoints.offset);  // 64-byte aligned
-  if (with_features) {
+  // Version 2: every byte checked now. Version 3: on first use (LazyCheck).
+  if (with_features && !compact) {
     std::vector<char> kept(num_keyframes, 0);
     for (const size_t i : keep) kept[i] = 1;
     // What is wrong with the first kept keyframe whose keypoints are bad.
@@ -859,6 +1099,7 @@ void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const 
     if (in_place) {
       mapped_whole_image_ = reinterpret_cast<const int8_t*>(whole_image_rows);
     } else {
+      if (compact) verify_whole_image();  // copied now, so checked now
       whole_image_.reserve(keep.size() * whole_image_dims);
       for (const size_t i : keep) {
         const auto* row = reinterpret_cast<const int8_t*>(whole_image_rows) + i * whole_image_dims;
@@ -876,8 +1117,32 @@ void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const 
     keyframes_.push_back(std::move(all[i]));
   }
   has_features_ = with_features;
-  mapped_keypoints_ = file_keypoints;
+  if (compact) {
+    mapped_compact_keypoints_ = b + keypoints.offset + kf::kCompactKeypointPreambleBytes;
+  } else {
+    mapped_keypoints_ = file_keypoints;
+  }
   mapped_descriptors_ = reinterpret_cast<const uint8_t*>(b + descriptors.offset);
+  if (compact && with_features) {
+    auto lazy = std::make_shared<LazyCheck>();
+    lazy->shown = shown;
+    lazy->sums.resize(2 * keep.size());
+    for (size_t j = 0; j < keep.size(); ++j) {
+      const char* entry = b + feature_blocks.offset + keep[j] * kf::kFeatureBlockEntryBytes;
+      lazy->sums[2 * j] = Field<uint64_t>(entry, 0);
+      lazy->sums[2 * j + 1] = Field<uint64_t>(entry, 8);
+    }
+    lazy->checked = std::make_unique<std::atomic<uint8_t>[]>(keep.size());
+    lazy->keypoints = {b + keypoints.offset, keypoints.bytes, keypoints.checksum};
+    lazy->descriptors = {b + descriptors.offset, descriptors.bytes, descriptors.checksum};
+    if (whole_image.present) {
+      lazy->whole_image = {b + whole_image.offset, whole_image.bytes, whole_image.checksum};
+      // Rows copied for a subset were checked above.
+      lazy->whole_image_checked.store(mapped_whole_image_ == nullptr);
+    }
+    lazy_ = std::move(lazy);
+  }
+  file_format_version_ = version;
   mapping_ = std::move(file);
   subset_ = options.subset;
   keyframes_in_file_ = num_keyframes;
@@ -929,14 +1194,15 @@ Database Database::Load(const std::string& dir, const LoadOptions& options) {
       if (manifest.contains("source") && manifest["source"].is_string())
         source = manifest["source"].get<std::string>();
       PLACEDB_THROW_CORRUPT(
-          dir, ": database format version 1 is no longer read (this placedb reads version ",
-          kDatabaseFormatVersion, "); rebuild it with `placedb build ... --out ", dir,
-          " --overwrite` from ", source, " (the settings are in its manifest.json)");
+          dir, ": database format version 1 is no longer read (this placedb reads versions ",
+          kOldestDatabaseFormatVersion, " to ", kDatabaseFormatVersion,
+          "); rebuild it with `placedb build ... --out ", dir, " --overwrite` from ", source,
+          " (the settings are in its manifest.json)");
     }
-    if (version != kDatabaseFormatVersion) {
+    if (version < kOldestDatabaseFormatVersion || version > kDatabaseFormatVersion) {
       PLACEDB_THROW_CORRUPT(dir, ": database format version ", version,
-                            " is not supported (this placedb reads version ",
-                            kDatabaseFormatVersion, ")");
+                            " is not supported (this placedb reads versions ",
+                            kOldestDatabaseFormatVersion, " to ", kDatabaseFormatVersion, ")");
     }
     const JsonReader files = m.Child("files");
     const std::string name = files.String("keyframes");
@@ -973,6 +1239,7 @@ Database Database::Load(const std::string& dir, const LoadOptions& options) {
                             " (corrupted database)");
     };
     if (checksum != expected_checksum) disagree("the file's checksum");
+    if (static_cast<uint32_t>(version) != db.file_format_version_) disagree("the format version");
     if (feature_type != FeatureTypeName(db.feature_type_)) disagree("the feature type");
     if (descriptor_bytes != db.descriptor_bytes_) disagree("the descriptor width");
     if (whole_image_dims != db.whole_image_dims_) disagree("the whole-image channel");

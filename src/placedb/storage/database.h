@@ -6,8 +6,9 @@
 //   manifest.json                format version, every setting used to build it,
 //                                counts, sizes, creation info, and the name, size
 //                                and checksum of the keyframe file it goes with
-//   keyframes.<checksum>.bin     the keyframe file, format version 2 (see
-//                                keyframe_file.h): a new name for every content
+//   keyframes.<checksum>.bin     the keyframe file, format version 3 (2 is
+//                                read too; see keyframe_file.h): a new name
+//                                for every content
 //   images/                      the stored (cropped, resized) PNGs, when kept
 //
 // The manifest names its keyframe file, so a reader can never pair a manifest
@@ -26,17 +27,20 @@
 #include <vector>
 
 #include "placedb/feature/types.h"
+#include "placedb/match/ratio_matcher.h"
 #include "placedb/storage/keyframe.h"
 #include "placedb/storage/keyframe_subset.h"
-#include "placedb/match/ratio_matcher.h"
 #include "placedb/util/mapped_file.h"
 #include "placedb/util/pose.h"
 #include "placedb/util/span.h"
 
 namespace placedb {
 
-// Version of the keyframe file and manifest this code writes and reads.
-constexpr uint32_t kDatabaseFormatVersion = 2;
+// Version of the keyframe file and manifest this code writes, and the
+// oldest it reads (a version 2 database opens, answers as before, and is
+// written as version 3 by its next save).
+constexpr uint32_t kDatabaseFormatVersion = 3;
+constexpr uint32_t kOldestDatabaseFormatVersion = 2;
 
 // Why a keyframe record is impossible, or "" when it is fine: an id below 1, a
 // crop channel outside [-1, 2], a negative size or crop, an image side above
@@ -112,12 +116,34 @@ class Database {
   // Index of the keyframe with this id, or -1.
   int IndexOfId(int32_t id) const;
 
-  // Keypoints (stored-image coordinates) and descriptors of keyframe `index`,
-  // views valid while the database is alive and unchanged. SURF rows are
-  // grouped by the sign of the Laplacian: the block's first positive_rows
-  // rows have sign +1 (keypoint class_id >= 0), the rest -1.
-  Span<cv::KeyPoint> Keypoints(size_t index) const;
+  // Keypoints (stored-image coordinates, a copy: a version 3 file keeps
+  // them compact, storage/compact_keypoint.h) and descriptors (a view valid
+  // while the database is alive and unchanged) of keyframe `index`. SURF
+  // rows are grouped by the sign of the Laplacian: the block's first
+  // positive_rows rows have sign +1 (keypoint class_id >= 0), the rest -1.
+  //
+  // Integrity: a version 3 database read from its file checks a keyframe's
+  // features the first time they are asked for (their two block checksums,
+  // then the values: keypoints inside the stored image, SURF rows finite
+  // and grouped by sign), and the whole-image rows the first time they are
+  // asked for; so no byte influences an answer unchecked, and opening
+  // touches only the keyframe table. Damage found then is CorruptDatabase
+  // (from these accessors, so from the query that asked). A version 2 file
+  // is checked whole on open, as before. Thread-safe.
+  std::vector<cv::KeyPoint> Keypoints(size_t index) const;
   DescriptorBlock Descriptors(size_t index) const;
+  // Checks now every byte of the database that is not yet checked (what
+  // `placedb verify` runs): the keypoint, descriptor and whole-image
+  // sections' checksums and every keyframe's features. CorruptDatabase on
+  // the first damage found; nothing to do for a built database or a
+  // version 2 file (checked on open).
+  void VerifyAll() const;
+  // Whether keyframe `index`'s features have been checked (always true but
+  // for a version 3 file's keyframes not used yet).
+  bool FeaturesChecked(size_t index) const;
+  // The version of the keyframe file this database was read from (0: never
+  // read from a file).
+  uint32_t file_format_version() const { return file_format_version_; }
   size_t FeatureCount(size_t index) const { return feature_count_[index]; }
 
   // The whole-image channel (feature/whole_image.h): one row of
@@ -126,7 +152,8 @@ class Database {
   // size() rows back to back in keyframe index order (nullptr without a
   // channel), valid while the database is alive and unchanged; WholeImage(i)
   // is keyframe i's row. A keyframe table (has_features() false) has no rows
-  // to give (InvalidArgument), but says its dims.
+  // to give (InvalidArgument), but says its dims. The first call checks the
+  // rows of a version 3 file (CorruptDatabase when damaged).
   int whole_image_dims() const { return whole_image_dims_; }
   const int8_t* WholeImageData() const;
   const int8_t* WholeImage(size_t index) const {
@@ -181,6 +208,9 @@ class Database {
   // makes it read the new generation (a few retries). Every header field,
   // offset, count, size and checksum of the file is checked before use.
   // Errors: NotFound when `dir` holds no database (no folder, no manifest);
+  // Opening a version 3 file checks its header, section table, keyframe
+  // records, strings and block checksum table; the features are checked on
+  // first use (Keypoints, "Integrity").
   // CorruptDatabase with a clear message for a truncated, corrupted,
   // wrong-magic or wrong-version database (a version 1 database says how to
   // rebuild it), one that misses a file its manifest names, or one whose
@@ -207,6 +237,13 @@ class Database {
   void DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const std::string& shown,
                           const LoadOptions& options);
   void CopyOnWrite();
+  // Throws CorruptDatabase unless keyframe `index`'s features are checked
+  // (checking them if they are not yet).
+  void EnsureChecked(size_t index) const {
+    if (lazy_ != nullptr && !FeaturesChecked(index)) CheckFeatures(index);
+  }
+  void CheckFeatures(size_t index) const;
+  void EnsureWholeImageChecked() const;
   const cv::KeyPoint* KeypointData() const {
     return mapping_ ? mapped_keypoints_ : keypoints_.data();
   }
@@ -232,8 +269,16 @@ class Database {
   std::vector<int8_t> whole_image_;  // size() * whole_image_dims_
   // A loaded database uses its keypoints and descriptors in place in the
   // memory-mapped file; the first AddKeyframe copies them (copy on write).
+  // Keypoints are cv::KeyPoint records (version 2) or compact records
+  // (version 3, after the section's preamble).
   std::shared_ptr<const MappedFile> mapping_;
   const cv::KeyPoint* mapped_keypoints_ = nullptr;
+  const char* mapped_compact_keypoints_ = nullptr;
+  // What checks a version 3 file's features on first use (shared by
+  // copies, which share the mapping); nullptr when everything is checked.
+  struct LazyCheck;
+  std::shared_ptr<LazyCheck> lazy_;
+  uint32_t file_format_version_ = 0;
   const uint8_t* mapped_descriptors_ = nullptr;
   // The whole file's rows in place (a subset's are copied into whole_image_).
   const int8_t* mapped_whole_image_ = nullptr;

@@ -22,9 +22,10 @@
 
 #include "placedb/feature/extractor.h"
 #include "placedb/feature/whole_image.h"
-#include "placedb/storage/keyframe_file.h"
-#include "placedb/query/query.h"
 #include "placedb/match/ratio_matcher.h"
+#include "placedb/query/query.h"
+#include "placedb/storage/compact_keypoint.h"
+#include "placedb/storage/keyframe_file.h"
 #include "placedb/util/checksum.h"
 #include "placedb/util/file_io.h"
 #include "placedb/util/json_reader.h"
@@ -65,7 +66,7 @@ Database MakeDatabase(const ExtractorOptions& options, int n, bool with_poses) {
     k.stored_size = stored.size();
     k.scale = 0.5;
     k.source = RtabmapImage(i);
-    k.source_hash = i == 3 ? 0 : 0x8000000000000000ull + 77 * i;  // 0: not recorded
+    k.source_hash = i == 3 ? 0 : 0x8000000000000000ull + 77 * i;          // 0: not recorded
     k.image_file = i == 2 ? "" : "images/" + std::to_string(i) + ".png";  // one without image
     if (with_poses && i % 2 == 1) {
       Pose pose;
@@ -98,6 +99,14 @@ void ExpectKeyframesEqual(const Keyframe& a, const Keyframe& b) {
     EXPECT_EQ(a.pose->translation, b.pose->translation);
     EXPECT_EQ(a.pose->rotation.coeffs(), b.pose->rotation.coeffs());
   }
+}
+
+// Opens a database and checks every byte of it: a version 3 file checks a
+// keyframe's features on first use, and this uses them all (VerifyAll).
+Database LoadVerified(const std::string& dir, const KeyframeSubset& subset = KeyframeSubset()) {
+  Database db = Database::Load(dir, subset);
+  db.VerifyAll();
+  return db;
 }
 
 void ExpectDatabasesEqual(const Database& a, const Database& b) {
@@ -148,7 +157,7 @@ void RoundTrip(const ExtractorOptions& options, bool with_poses) {
   for (size_t i = 0; i < db.size(); ++i) EXPECT_GT(db.FeatureCount(i), 10u) << i;
   db.Save(tmp.Path());
   EXPECT_TRUE(fs::exists(tmp.Path("manifest.json")));
-  const Database loaded = Database::Load(tmp.Path());
+  const Database loaded = LoadVerified(tmp.Path());
   ExpectDatabasesEqual(db, loaded);
   ExpectInfoPreserved(db.info(), loaded.info());
   EXPECT_EQ(loaded.info()["format"], "placedb-database");
@@ -172,7 +181,7 @@ void RoundTrip(const ExtractorOptions& options, bool with_poses) {
   fs::create_directories(dir2);
   EXPECT_EQ(loaded.Save(dir2).keyframes_file, bin_name);  // named by its content
   EXPECT_EQ(ReadFileToString(dir2 + "/" + bin_name), bin1);
-  const Database loaded2 = Database::Load(dir2);
+  const Database loaded2 = LoadVerified(dir2);
   ExpectDatabasesEqual(db, loaded2);
   EXPECT_EQ(loaded2.info(), loaded.info());
 }
@@ -193,11 +202,11 @@ TEST(DatabaseTest, RoundTripSurf) {
   const Database db = MakeDatabase(options, 1, false);
   EXPECT_EQ(db.descriptor_bytes(), 256);
   db.Save(tmp.Path());
-  const Database loaded = Database::Load(tmp.Path());
+  const Database loaded = LoadVerified(tmp.Path());
   EXPECT_EQ(loaded.feature_type(), FeatureType::kSurf);
   // Rows grouped by sign: the first positive_rows have class_id >= 0.
   const DescriptorBlock block = loaded.Descriptors(0);
-  const Span<cv::KeyPoint> kp = loaded.Keypoints(0);
+  const std::vector<cv::KeyPoint> kp = loaded.Keypoints(0);
   EXPECT_GT(block.positive_rows, 0);
   EXPECT_LT(block.positive_rows, block.rows);
   for (int r = 0; r < block.rows; ++r) EXPECT_EQ(kp[r].class_id >= 0, r < block.positive_rows) << r;
@@ -210,14 +219,14 @@ TEST(DatabaseTest, LoadedDatabaseGrowsAndOutlivesItsFiles) {
   TempDir tmp;
   const Database three = MakeDatabase(ExtractorOptions(), 3, true);
   three.Save(tmp.Path());
-  Database loaded = Database::Load(tmp.Path());
+  Database loaded = LoadVerified(tmp.Path());
   MakeDatabase(ExtractorOptions(), 1, false).Save(tmp.Path());  // files replaced
   ExpectDatabasesEqual(three, loaded);
 
   const Database four = MakeDatabase(ExtractorOptions(), 4, true);
   FeatureSet extra;
   extra.type = FeatureType::kOrb;
-  extra.keypoints = four.Keypoints(3).ToVector();
+  extra.keypoints = four.Keypoints(3);
   const DescriptorBlock block = four.Descriptors(3);
   extra.descriptors = cv::Mat(block.rows, 32, CV_8U, const_cast<uint8_t*>(block.data)).clone();
   extra.whole_image = four.Features(3).whole_image;
@@ -226,14 +235,14 @@ TEST(DatabaseTest, LoadedDatabaseGrowsAndOutlivesItsFiles) {
   ExpectDatabasesEqual(four, loaded);
   TempDir again;
   loaded.Save(again.Path());
-  ExpectDatabasesEqual(four, Database::Load(again.Path()));
+  ExpectDatabasesEqual(four, LoadVerified(again.Path()));
 }
 
 TEST(DatabaseTest, EmptyDatabaseRoundTrip) {
   TempDir tmp;
   Database db(FeatureType::kOrb, 32);
   db.Save(tmp.Path());
-  const Database loaded = Database::Load(tmp.Path());
+  const Database loaded = LoadVerified(tmp.Path());
   EXPECT_TRUE(loaded.empty());
   EXPECT_EQ(loaded.num_features(), 0u);
   EXPECT_EQ(loaded.feature_type(), FeatureType::kOrb);
@@ -242,7 +251,7 @@ TEST(DatabaseTest, EmptyDatabaseRoundTrip) {
   TempDir with;
   Database channel(FeatureType::kOrb, 32, 768);
   channel.Save(with.Path());
-  const Database back = Database::Load(with.Path());
+  const Database back = LoadVerified(with.Path());
   EXPECT_TRUE(back.empty());
   EXPECT_EQ(back.whole_image_dims(), 768);
 }
@@ -298,7 +307,7 @@ TEST(DatabaseTest, SubsetsOpenOnlyTheirKeyframes) {
   for (const ExtractorOptions& options : {ExtractorOptions(), surf}) {
     TempDir tmp;
     MakeDatabase(options, 7, true).Save(tmp.Path());
-    const Database whole = Database::Load(tmp.Path());
+    const Database whole = LoadVerified(tmp.Path());
     ASSERT_EQ(whole.size(), 7u);
     for (const PartitionScheme scheme :
          {PartitionScheme::kContiguous, PartitionScheme::kInterleaved}) {
@@ -306,7 +315,7 @@ TEST(DatabaseTest, SubsetsOpenOnlyTheirKeyframes) {
         size_t keyframes = 0, features = 0;
         for (int p = 0; p < parts; ++p) {
           const Database part =
-              Database::Load(tmp.Path(), KeyframeSubset::Partition(p, parts, scheme));
+              LoadVerified(tmp.Path(), KeyframeSubset::Partition(p, parts, scheme));
           EXPECT_EQ(part.keyframes_in_file(), 7u);
           ExpectSubsetOf(whole, part);
           for (size_t i = 0; i < part.size(); ++i) {
@@ -321,12 +330,12 @@ TEST(DatabaseTest, SubsetsOpenOnlyTheirKeyframes) {
     }
     // Contiguous partition 1 of 3 of 7 keyframes: indices [7/3, 14/3) = 2, 3
     // (ids 30, 40).
-    const Database middle = Database::Load(tmp.Path(), KeyframeSubset::Partition(1, 3));
+    const Database middle = LoadVerified(tmp.Path(), KeyframeSubset::Partition(1, 3));
     ASSERT_EQ(middle.size(), 2u);
     EXPECT_EQ(middle.keyframe(0).id, 30);
     EXPECT_EQ(middle.keyframe(1).id, 40);
     // An id list, in any order, duplicates ignored.
-    const Database ids = Database::Load(tmp.Path(), KeyframeSubset::Ids({60, 10, 60}));
+    const Database ids = LoadVerified(tmp.Path(), KeyframeSubset::Ids({60, 10, 60}));
     ASSERT_EQ(ids.size(), 2u);
     EXPECT_EQ(ids.keyframe(0).id, 10);
     EXPECT_EQ(ids.keyframe(1).id, 60);
@@ -335,20 +344,20 @@ TEST(DatabaseTest, SubsetsOpenOnlyTheirKeyframes) {
     ExpectSubsetOf(whole, ids);
     EXPECT_TRUE(ThrowsWith<InvalidArgument>(
         [&] {
-          Database::Load(tmp.Path(), KeyframeSubset::Ids({10, 15}));
+          LoadVerified(tmp.Path(), KeyframeSubset::Ids({10, 15}));
         },
         "keyframe id 15 is not in the database"));
     EXPECT_TRUE(ThrowsWith<InvalidArgument>(
-        [&] { Database::Load(tmp.Path(), KeyframeSubset::Partition(3, 3)); }, "part must be in"));
+        [&] { LoadVerified(tmp.Path(), KeyframeSubset::Partition(3, 3)); }, "part must be in"));
     // A subset saved is a database of that subset; it grows like any other.
     TempDir saved;
     Database copy = ids;
     copy.Save(saved.Path());
-    const Database reloaded = Database::Load(saved.Path());
+    const Database reloaded = LoadVerified(saved.Path());
     ExpectDatabasesEqual(ids, reloaded);
     FeatureSet extra;
     extra.type = options.type;
-    extra.keypoints = whole.Keypoints(3).ToVector();
+    extra.keypoints = whole.Keypoints(3);
     const DescriptorBlock block = whole.Descriptors(3);
     extra.descriptors =
         options.type == FeatureType::kOrb
@@ -397,7 +406,7 @@ class DatabaseFileTest : public ::testing::Test {
   }
   std::string Dir() const { return tmp_.Path(); }
   auto LoadFn() const {
-    return [dir = Dir()] { Database::Load(dir); };
+    return [dir = Dir()] { LoadVerified(dir); };
   }
   void WriteManifest(const nlohmann::json& m) const {
     WriteBytes(Dir() + "/manifest.json", m.dump(2));
@@ -413,9 +422,7 @@ class DatabaseFileTest : public ::testing::Test {
     WriteManifest(m);
   }
   // Offset of section `kind` in the saved file.
-  uint64_t SectionOffset(uint32_t kind) const {
-    return SectionOffsetIn(bytes_, kind);
-  }
+  uint64_t SectionOffset(uint32_t kind) const { return SectionOffsetIn(bytes_, kind); }
   template <typename T>
   static void Put(std::string* bytes, size_t at, T value) {
     std::memcpy(&(*bytes)[at], &value, sizeof(T));
@@ -444,7 +451,7 @@ TEST_F(DatabaseFileTest, TruncatedKeyframesFile) {
   }
   WriteBytes(bin_, bytes_);
   WriteManifest(manifest_);
-  EXPECT_EQ(Database::Load(Dir()).size(), 3u);
+  EXPECT_EQ(LoadVerified(Dir()).size(), 3u);
 }
 
 TEST_F(DatabaseFileTest, CorruptedBytesFailTheirChecksum) {
@@ -453,10 +460,12 @@ TEST_F(DatabaseFileTest, CorruptedBytesFailTheirChecksum) {
            {64 + 8, "header checksum mismatch"},  // the section table
            {SectionOffset(keyframe_file::kKeyframes) + 5, "keyframe section checksum mismatch"},
            {SectionOffset(keyframe_file::kStrings) + 3, "string section checksum mismatch"},
-           {SectionOffset(keyframe_file::kKeypoints) + 77, "keypoint section checksum mismatch"},
+           {SectionOffset(keyframe_file::kCompactKeypoints) + 77,
+            "keypoint section checksum mismatch"},
            {SectionOffset(keyframe_file::kSourceHashes) + 9,
             "source hash section checksum mismatch"},
-           {bytes_.size() - 10, "descriptor section checksum mismatch"}}) {
+           {SectionOffset(keyframe_file::kDescriptors) + 5, "descriptor section checksum mismatch"},
+           {bytes_.size() - 10, "feature block section checksum mismatch"}}) {
     std::string bad = bytes_;
     bad[at] = static_cast<char>(bad[at] ^ 0x10);
     WriteBytes(bin_, bad);
@@ -475,19 +484,19 @@ TEST_F(DatabaseFileTest, CorruptedBytesFailTheirChecksum) {
 // placedb's) reads with every hash 0, "not recorded"; one of another size
 // than the keyframes' is refused.
 TEST_F(DatabaseFileTest, SourceHashesAreOptional) {
-  const Database saved = Database::Load(Dir());
+  const Database saved = LoadVerified(Dir());
   ASSERT_EQ(saved.size(), 3u);
   EXPECT_EQ(saved.keyframe(0).source_hash, 0x8000000000000000ull + 77);
   EXPECT_EQ(saved.keyframe(2).source_hash, 0u);
-  // The fifth entry of the table is the hashes': a table of four drops it.
+  // The sixth entry of the table is the hashes': a table of five drops it.
   uint32_t kind;
-  std::memcpy(&kind, &bytes_[64 + 4 * 32], 4);
+  std::memcpy(&kind, &bytes_[64 + 5 * 32], 4);
   ASSERT_EQ(kind, keyframe_file::kSourceHashes);
   std::string old = bytes_;
-  Put<uint32_t>(&old, 24, 4);  // the whole-image section (the sixth) goes too
+  Put<uint32_t>(&old, 24, 5);  // the whole-image section (the seventh) goes too
   manifest_.erase("whole_image_dims");
   WriteResealed(old);
-  const Database earlier = Database::Load(Dir());
+  const Database earlier = LoadVerified(Dir());
   ASSERT_EQ(earlier.size(), 3u);
   for (size_t i = 0; i < 3; ++i) {
     EXPECT_EQ(earlier.keyframe(i).source_hash, 0u);
@@ -496,9 +505,10 @@ TEST_F(DatabaseFileTest, SourceHashesAreOptional) {
     ExpectKeyframesEqual(earlier.keyframe(i), k);
   }
   std::string short_section = bytes_;
-  Put<uint64_t>(&short_section, 64 + 4 * 32 + 16, 16);
+  Put<uint64_t>(&short_section, 64 + 5 * 32 + 16, 16);
   WriteResealed(short_section);
-  EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), "the source hash section's size does not match"));
+  EXPECT_TRUE(
+      ThrowsWith<CorruptDatabase>(LoadFn(), "the source hash section's size does not match"));
 }
 
 // The whole-image section is optional too: a file without it (an earlier
@@ -506,21 +516,21 @@ TEST_F(DatabaseFileTest, SourceHashesAreOptional) {
 // manifest's whole_image_dims must agree with the file; a damaged section
 // (size, preamble, values) is refused.
 TEST_F(DatabaseFileTest, WholeImageSectionIsOptionalAndChecked) {
-  const Database saved = Database::Load(Dir());
+  const Database saved = LoadVerified(Dir());
   ASSERT_EQ(saved.whole_image_dims(), 768);
   EXPECT_EQ(manifest_["whole_image_dims"], 768);
   for (size_t i = 0; i < 3; ++i)
     EXPECT_EQ(0, std::memcmp(saved.WholeImage(i), db_->WholeImage(i), 768)) << i;
   uint32_t kind;
-  std::memcpy(&kind, &bytes_[64 + 5 * 32], 4);
+  std::memcpy(&kind, &bytes_[64 + 6 * 32], 4);
   ASSERT_EQ(kind, keyframe_file::kWholeImage);
   std::string without = bytes_;
-  Put<uint32_t>(&without, 24, 5);  // drops the sixth entry
+  Put<uint32_t>(&without, 24, 6);  // drops the seventh entry
   WriteResealed(without);
   EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), "disagree on the whole-image channel"));
   manifest_.erase("whole_image_dims");
   WriteResealed(without);
-  const Database earlier = Database::Load(Dir());
+  const Database earlier = LoadVerified(Dir());
   EXPECT_EQ(earlier.whole_image_dims(), 0);
   EXPECT_EQ(earlier.WholeImageData(), nullptr);
   EXPECT_EQ(earlier.keyframe(0).source_hash, saved.keyframe(0).source_hash);
@@ -533,14 +543,13 @@ TEST_F(DatabaseFileTest, WholeImageSectionIsOptionalAndChecked) {
   for (const auto& [what, edit] :
        std::vector<std::pair<std::string, std::function<void(std::string*)>>>{
            {"whole-image rows of 0 values", [&](std::string* b) { Put<uint32_t>(b, at, 0); }},
-           {"whole-image rows of 5000 values",
-            [&](std::string* b) { Put<uint32_t>(b, at, 5000); }},
+           {"whole-image rows of 5000 values", [&](std::string* b) { Put<uint32_t>(b, at, 5000); }},
            {"size does not match 3 keyframes of 769",
             [&](std::string* b) { Put<uint32_t>(b, at, 769); }},
            {"reserved bytes are not 0", [&](std::string* b) { (*b)[at + 63] = 1; }},
            {"holds -128", [&](std::string* b) { (*b)[at + 64 + 700] = static_cast<char>(0x80); }},
            {"shorter than its preamble",
-            [&](std::string* b) { Put<uint64_t>(b, 64 + 5 * 32 + 16, 63); }},
+            [&](std::string* b) { Put<uint64_t>(b, 64 + 6 * 32 + 16, 63); }},
        }) {
     std::string bad = bytes_;
     edit(&bad);
@@ -598,7 +607,7 @@ TEST(DatabaseRowsTest, WholeImageRowsAreCheckedAndFollowTheirKeyframes) {
   // A loaded database grows by copy on write, rows included.
   TempDir tmp;
   kept.Save(tmp.Path());
-  Database loaded = Database::Load(tmp.Path());
+  Database loaded = LoadVerified(tmp.Path());
   loaded.AddKeyframe(built.keyframe(2), built.Features(2));
   EXPECT_EQ(0, std::memcmp(loaded.WholeImage(0), built.WholeImage(0), 768));
   EXPECT_EQ(0, std::memcmp(loaded.WholeImage(2), built.WholeImage(2), 768));
@@ -624,7 +633,60 @@ TEST_F(DatabaseFileTest, KeyframeTableSkipsTheFeatures) {
   EXPECT_EQ(db.FeatureCount(0), db_->FeatureCount(0));
   EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.Descriptors(0); }, "keyframe table"));
   EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.Keypoints(0); }, "keyframe table"));
-  EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), "descriptor section checksum mismatch"));
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), "feature block section checksum mismatch"));
+}
+
+// Version 3 opens without reading the features, and checks each keyframe's
+// the first time they are used: damage there does not stop the open, but
+// no damaged byte reaches a caller (the accessors throw), the other
+// keyframes answer, and VerifyAll finds it.
+TEST_F(DatabaseFileTest, FeaturesAreCheckedOnFirstUse) {
+  const size_t kp0 = SectionOffset(keyframe_file::kCompactKeypoints) +
+                     keyframe_file::kCompactKeypointPreambleBytes;
+  const size_t rows = SectionOffset(keyframe_file::kDescriptors);
+  const size_t second = db_->FeatureCount(0);  // keyframe 20's first row
+  struct Case {
+    size_t at;
+    std::string what;
+  };
+  for (const Case& c : std::vector<Case>{
+           {kp0 + 10 * second + 3, "keyframe 20: its keypoints fail their block checksum"},
+           {rows + 32 * second + 7, "keyframe 20: its descriptors fail their block checksum"}}) {
+    std::string bad = bytes_;
+    bad[c.at] = static_cast<char>(bad[c.at] ^ 0x04);
+    WriteBytes(bin_, bad);  // not resealed: the section checksum is wrong too
+    const Database db = Database::Load(Dir());
+    ASSERT_EQ(db.size(), 3u);
+    for (size_t i = 0; i < 3; ++i) EXPECT_FALSE(db.FeaturesChecked(i));
+    EXPECT_EQ(db.Keypoints(0).size(), db_->FeatureCount(0));  // keyframe 10 is fine
+    EXPECT_TRUE(db.FeaturesChecked(0));
+    EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { db.Descriptors(1); }, c.what)) << c.what;
+    EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { db.Keypoints(1); }, c.what)) << c.what;
+    EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { db.Features(1); }, c.what)) << c.what;
+    EXPECT_FALSE(db.FeaturesChecked(1));
+    EXPECT_NO_THROW(db.Descriptors(2));
+    EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { db.VerifyAll(); }, "section checksum mismatch"));
+    // Copying the database (the first added keyframe) reads every keyframe.
+    Database grown = db;
+    EXPECT_THROW(grown.Reserve(4, 1000), CorruptDatabase);
+  }
+  // The whole-image rows: checked on the first call.
+  std::string bad = bytes_;
+  const size_t rows_at = SectionOffset(keyframe_file::kWholeImage) + 64;
+  bad[rows_at + 5] = static_cast<char>(bad[rows_at + 5] ^ 0x02);
+  WriteBytes(bin_, bad);
+  const Database db = Database::Load(Dir());
+  EXPECT_NO_THROW(db.Descriptors(0));
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { db.WholeImageData(); },
+                                          "whole-image section checksum mismatch"));
+  // Undamaged: every keyframe is checked once used, and VerifyAll passes.
+  WriteBytes(bin_, bytes_);
+  const Database good = Database::Load(Dir());
+  EXPECT_EQ(good.file_format_version(), keyframe_file::kVersion);
+  EXPECT_FALSE(good.FeaturesChecked(2));
+  good.VerifyAll();
+  for (size_t i = 0; i < 3; ++i) EXPECT_TRUE(good.FeaturesChecked(i));
+  ExpectDatabasesEqual(*db_, good);
 }
 
 TEST_F(DatabaseFileTest, WrongVersions) {
@@ -689,7 +751,7 @@ TEST_F(DatabaseFileTest, ManifestMustAgreeWithTheKeyframeFile) {
                     "format_version is not an integer"));
   EXPECT_TRUE(fails([](nlohmann::json& m) { m.erase("files"); }, "files is missing"));
   WriteManifest(manifest_);
-  EXPECT_EQ(Database::Load(Dir()).size(), 3u);
+  EXPECT_EQ(LoadVerified(Dir()).size(), 3u);
 }
 
 TEST_F(DatabaseFileTest, MissingFiles) {
@@ -698,11 +760,10 @@ TEST_F(DatabaseFileTest, MissingFiles) {
   fs::remove(Dir() + "/manifest.json");
   // The keyframe file and the manifest are gone: no database there at all.
   EXPECT_TRUE(ThrowsWith<NotFound>(LoadFn(), {"no database at", "manifest.json is missing"}));
-  EXPECT_TRUE(ThrowsWith<NotFound>([&] { Database::Load(Dir() + "/nothing_here"); },
+  EXPECT_TRUE(ThrowsWith<NotFound>([&] { LoadVerified(Dir() + "/nothing_here"); },
                                    {"no database at", "(no such directory)"}));
   WriteBytes(Dir() + "/a_file", "x");
-  EXPECT_TRUE(
-      ThrowsWith<NotFound>([&] { Database::Load(Dir() + "/a_file"); }, "(not a directory)"));
+  EXPECT_TRUE(ThrowsWith<NotFound>([&] { LoadVerified(Dir() + "/a_file"); }, "(not a directory)"));
 }
 
 // The kind of each error, which decides the CLI's exit code and the Python
@@ -710,12 +771,12 @@ TEST_F(DatabaseFileTest, MissingFiles) {
 // the system refuses IoError, a bad argument InvalidArgument. Messages name
 // the path but never a source file.
 TEST_F(DatabaseFileTest, ErrorKinds) {
-  EXPECT_THROW(Database::Load(Dir() + "/missing"), NotFound);
+  EXPECT_THROW(LoadVerified(Dir() + "/missing"), NotFound);
   std::string flipped = bytes_;
   flipped[flipped.size() / 2] ^= 0x01;
   WriteBytes(bin_, flipped);
   try {
-    Database::Load(Dir());
+    LoadVerified(Dir());
     ADD_FAILURE() << "a flipped byte loaded";
   } catch (const CorruptDatabase& e) {
     EXPECT_NE(std::string(e.what()).find(name_), std::string::npos) << e.what();
@@ -727,8 +788,8 @@ TEST_F(DatabaseFileTest, ErrorKinds) {
   EXPECT_THROW(db_->Save("/proc"), IoError);
   // A file where the database folder should be: no database there.
   EXPECT_THROW(db_->Save(bin_), NotFound);
-  EXPECT_THROW(Database::Load(Dir(), KeyframeSubset::Partition(3, 2)), InvalidArgument);
-  EXPECT_EQ(Database::Load(Dir()).size(), 3u);
+  EXPECT_THROW(LoadVerified(Dir(), KeyframeSubset::Partition(3, 2)), InvalidArgument);
+  EXPECT_EQ(LoadVerified(Dir()).size(), 3u);
 }
 
 TEST_F(DatabaseFileTest, ManifestNotJson) {
@@ -741,14 +802,15 @@ TEST_F(DatabaseFileTest, ManifestNotJson) {
   WriteBytes(Dir() + "/manifest.json", std::string("\x89PNG\r\n\x1a\n\0\0", 10));
   EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), "not valid JSON"));
   WriteManifest(manifest_);
-  EXPECT_EQ(Database::Load(Dir()).size(), 3u);
+  EXPECT_EQ(LoadVerified(Dir()).size(), 3u);
 }
 
 // The defects found with hostile input, each with its regression test:
 // values that are impossible although every checksum is right.
 TEST_F(DatabaseFileTest, ImpossibleValuesWithValidChecksums) {
   const size_t k0 = SectionOffset(keyframe_file::kKeyframes);
-  const size_t kp = SectionOffset(keyframe_file::kKeypoints);
+  const size_t kp = SectionOffset(keyframe_file::kCompactKeypoints);
+  const size_t kp0 = kp + keyframe_file::kCompactKeypointPreambleBytes;  // the first record
   struct Case {
     std::string what;
     std::function<void(std::string*)> edit;
@@ -786,9 +848,22 @@ TEST_F(DatabaseFileTest, ImpossibleValuesWithValidChecksums) {
       {"bad pose flag", [&](std::string* b) { Put<uint32_t>(b, k0 + 56, 7); }},
       {"bad Laplacian split",
        [&](std::string* b) { Put<uint32_t>(b, k0 + 60, 2); }},  // ORB has none
-      {"keypoint that is not finite", [&](std::string* b) { Put<float>(b, kp + 4, std::nan("")); }},
-      {"keypoint that is not finite",
-       [&](std::string* b) { Put<float>(b, kp + 28 + 8, std::numeric_limits<float>::infinity()); }},
+      {"keypoint 1 has an impossible angle code",
+       [&](std::string* b) { Put<uint16_t>(b, kp0 + 10 + 6, 46080); }},
+      {"keyframe 10 has a keypoint outside its stored image",
+       [&](std::string* b) { Put<uint16_t>(b, kp0 + 2, 0xffff); }},
+      {"compact keypoints of 12 bytes", [&](std::string* b) { Put<uint32_t>(b, kp, 12); }},
+      {"position scheme 4", [&](std::string* b) { Put<uint32_t>(b, kp + 4, 4); }},
+      {"a stored image wider than 65533 px holds keypoints",
+       [&](std::string* b) {
+         Put<int32_t>(b, k0 + 32, 70000);  // stored width (the original is unknown: 0 x 0)
+         Put<int32_t>(b, k0 + 24, 0);
+         Put<int32_t>(b, k0 + 28, 0);
+       }},
+      {"compact keypoint section's reserved bytes",
+       [&](std::string* b) { Put<uint32_t>(b, kp + 60, 1); }},
+      {"section kind 3 does not belong in a version 3 file",
+       [&](std::string* b) { Put<uint32_t>(b, 64 + 32 * 6, keyframe_file::kKeypoints); }},
       {"cannot be 0 bytes wide", [&](std::string* b) { Put<uint32_t>(b, 20, 0); }},
       {"cannot be 1 bytes wide", [&](std::string* b) { Put<uint32_t>(b, 20, 1); }},
       {"cannot be 16 bytes wide", [&](std::string* b) { Put<uint32_t>(b, 20, 16); }},
@@ -817,7 +892,7 @@ TEST_F(DatabaseFileTest, ImpossibleValuesWithValidChecksums) {
     EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), c.what)) << c.what;
   }
   WriteResealed(bytes_);
-  EXPECT_EQ(Database::Load(Dir()).size(), 3u);
+  EXPECT_EQ(LoadVerified(Dir()).size(), 3u);
 }
 
 // The mutation test of the reader: 12 000 damaged keyframe files (bit flips,
@@ -834,7 +909,7 @@ TEST_F(DatabaseFileTest, MutatedFilesNeverCrash) {
   int loaded = 0, rejected = 0;
   auto attempt = [&] {
     try {
-      const Database db = Database::Load(Dir());
+      const Database db = LoadVerified(Dir());
       // A database that loads must be safe to use.
       std::vector<int8_t> lap;
       const DescriptorBlock q = MakeDescriptorBlock(query, &lap);
@@ -875,7 +950,7 @@ TEST_F(DatabaseFileTest, MutatedFilesNeverCrash) {
   constexpr int kFiles = 12000;
   uint32_t kSections;
   std::memcpy(&kSections, &bytes_[24], 4);
-  ASSERT_EQ(kSections, 6u);  // the fixture has every section, the whole image's too
+  ASSERT_EQ(kSections, 7u);  // the fixture has every section, the whole image's too
   for (int i = 0; i < kFiles; ++i) {
     std::string bad = bytes_;
     const int kind = static_cast<int>(rng() % 6);
@@ -883,14 +958,18 @@ TEST_F(DatabaseFileTest, MutatedFilesNeverCrash) {
     // strings, source hashes and whole-image section, the keypoints; now
     // and then anywhere (descriptor bits are data, any value is possible).
     const size_t table_end = 64 + kSections * 32;
-    const size_t records_end = SectionOffset(keyframe_file::kKeypoints);
+    const size_t records_end = SectionOffset(keyframe_file::kCompactKeypoints);
     const size_t features_at = SectionOffset(keyframe_file::kDescriptors);
     const int region = static_cast<int>(rng() % 10);
     const size_t from = region < 4 ? 0 : region < 7 ? table_end : region < 9 ? records_end : 0;
-    const size_t to = region < 4 ? table_end : region < 7 ? records_end : region < 9 ? features_at
-                                                                                    : bad.size();
+    const size_t to = region < 4   ? table_end
+                      : region < 7 ? records_end
+                      : region < 9 ? features_at
+                                   : bad.size();
     const size_t span = to - from;
-    auto at_in_region = [&](size_t alignment) { return from + (rng() % (span / alignment)) * alignment; };
+    auto at_in_region = [&](size_t alignment) {
+      return from + (rng() % (span / alignment)) * alignment;
+    };
     if (kind == 0) {  // bit flips
       for (int f = 0, n = 1 + static_cast<int>(rng() % 4); f < n; ++f) {
         bad[at_in_region(1)] ^= static_cast<char>(1 << (rng() % 8));
@@ -983,7 +1062,7 @@ TEST(DatabaseSaveTest, KilledInPlaceSaveLeavesALoadableDatabase) {
     ::kill(child, SIGKILL);
     int status = 0;
     ::waitpid(child, &status, 0);
-    const Database db = Database::Load(tmp.Path());
+    const Database db = LoadVerified(tmp.Path());
     EXPECT_TRUE(db.size() == 2 || db.size() == 6) << db.size();
     ExpectDatabasesEqual(db.size() == 2 ? small : large, db);
     ++survived;
@@ -1031,7 +1110,7 @@ TEST(DatabaseSaveTest, ReadersSeeOneGenerationWhileAWriterSaves) {
   int mixed = 0, seen_a = 0, seen_b = 0;
   try {
     while (!writer_done) {
-      const Database db = Database::Load(tmp.Path());
+      const Database db = LoadVerified(tmp.Path());
       const bool with_poses = db.keyframe(0).pose.has_value();
       const bool is_b = db.info()["generation"] == "b";
       mixed += with_poses != is_b;
@@ -1043,8 +1122,8 @@ TEST(DatabaseSaveTest, ReadersSeeOneGenerationWhileAWriterSaves) {
     reader_failed = true;
   }
   writer.join();
-  std::printf("%d loads during %d in-place saves (%d a, %d b), %d mixed\n", loads.load(),
-              kSaves, seen_a, seen_b, mixed);
+  std::printf("%d loads during %d in-place saves (%d a, %d b), %d mixed\n", loads.load(), kSaves,
+              seen_a, seen_b, mixed);
   EXPECT_EQ(writer_error, "");
   EXPECT_EQ(reader_error, "");
   EXPECT_EQ(mixed, 0);
@@ -1093,7 +1172,6 @@ TEST(DatabaseTest, DuplicateKeyframeIdThrows) {
   EXPECT_EQ(db.num_features(), features + set.size());
 }
 
-
 // ---- names, strings, keypoints and rows from a hostile file ------------------
 // (issue 17's hostile-input probe: each family crafted checksum-valid, so the
 // decoder's own checks must catch it).
@@ -1113,9 +1191,7 @@ void WriteResealedDatabase(const std::string& dir, const std::string& name,
 // Where things lie in a saved keyframe file.
 struct FileLayout {
   explicit FileLayout(const std::string& bytes) : bytes_(bytes) {}
-  uint64_t Section(uint32_t kind) const {
-    return SectionOffsetIn(bytes_, kind);
-  }
+  uint64_t Section(uint32_t kind) const { return SectionOffsetIn(bytes_, kind); }
   size_t Record(size_t i) const { return Section(keyframe_file::kKeyframes) + 152 * i; }
   template <typename T>
   T Get(size_t at) const {
@@ -1165,17 +1241,30 @@ bool InsideImages(const std::string& dir, const std::string& name) {
 
 TEST_F(DatabaseFileTest, StoredImageNamesStayInsideTheDatabase) {
   const std::string source = db_->keyframe(0).source.substr(0, 8);
-  for (const std::string& name :
-       {std::string("../victim.txt"), std::string("../../victim.txt"), std::string("/tmp/victim"),
-        std::string("/etc/passwd"), std::string("images/../../victim"),
-        std::string("images/../manifest.json"), std::string("images/a/b.png"),
-        std::string("images//x.png"), std::string("images/"), std::string("images/."),
-        std::string("images/.."), std::string("images/.hidden.png"),
-        std::string("images/x\x1b[31m.png"), std::string("images/x\n.png"),
-        std::string("images/x\0.png", 13), std::string("images/caf\xe9.png"),
-        std::string("images\\x.png"), std::string("imagesx.png"), std::string("images/x.png/"),
-        std::string("./images/1.png"), std::string("images/ x.png"), std::string("IMAGES/1.png"),
-        std::string("images/x\x7f.png"), std::string("x.png")}) {
+  for (const std::string& name : {std::string("../victim.txt"),
+                                  std::string("../../victim.txt"),
+                                  std::string("/tmp/victim"),
+                                  std::string("/etc/passwd"),
+                                  std::string("images/../../victim"),
+                                  std::string("images/../manifest.json"),
+                                  std::string("images/a/b.png"),
+                                  std::string("images//x.png"),
+                                  std::string("images/"),
+                                  std::string("images/."),
+                                  std::string("images/.."),
+                                  std::string("images/.hidden.png"),
+                                  std::string("images/x\x1b[31m.png"),
+                                  std::string("images/x\n.png"),
+                                  std::string("images/x\0.png", 13),
+                                  std::string("images/caf\xe9.png"),
+                                  std::string("images\\x.png"),
+                                  std::string("imagesx.png"),
+                                  std::string("images/x.png/"),
+                                  std::string("./images/1.png"),
+                                  std::string("images/ x.png"),
+                                  std::string("IMAGES/1.png"),
+                                  std::string("images/x\x7f.png"),
+                                  std::string("x.png")}) {
     std::string bad = bytes_;
     ASSERT_TRUE(SetStrings(&bad, 0, source, name));
     WriteResealed(bad);
@@ -1188,7 +1277,7 @@ TEST_F(DatabaseFileTest, StoredImageNamesStayInsideTheDatabase) {
     std::string good = bytes_;
     ASSERT_TRUE(SetStrings(&good, 0, source, name));
     WriteResealed(good);
-    EXPECT_EQ(Database::Load(Dir()).keyframe(0).image_file, name);
+    EXPECT_EQ(LoadVerified(Dir()).keyframe(0).image_file, name);
   }
   // A NUL cannot be in a path.
   std::string nul = bytes_;
@@ -1204,54 +1293,134 @@ TEST_F(DatabaseFileTest, SourcePathsOfAnyBytesOpenAndPrintSafely) {
   std::string bytes = bytes_;
   ASSERT_TRUE(SetStrings(&bytes, 0, source, "images/1.png"));
   WriteResealed(bytes);
-  const Database db = Database::Load(Dir());
+  const Database db = LoadVerified(Dir());
   ASSERT_EQ(db.keyframe(0).source, source);
   const std::string text = DumpJson(nlohmann::json{{"source", db.keyframe(0).source}});
   EXPECT_TRUE(IsValidUtf8(text));
   const std::string dumped = nlohmann::json::parse(text)["source"].get<std::string>();
   EXPECT_EQ(dumped.compare(0, 9, "/data/caf"), 0) << dumped;
   EXPECT_NE(dumped.find("\xef\xbf\xbd"), std::string::npos) << dumped;  // U+FFFD
-  EXPECT_NE(dumped.find("\x1b[2J\n"), std::string::npos) << dumped;  // valid UTF-8 kept
+  EXPECT_NE(dumped.find("\x1b[2J\n"), std::string::npos) << dumped;     // valid UTF-8 kept
   EXPECT_EQ(EscapeForTerminal(source), "/data/caf\\xe9/\\x1b[2J\\x0a\\x80\\xff.png");
 }
 
+// A compact keypoint's position code c (u16) in a 160 x 120 stored image is
+// c / 256 - 1 px (8 fraction bits).
+uint16_t PositionCode(float px) { return static_cast<uint16_t>(std::lround((px + 1.0f) * 256.0f)); }
+
 TEST_F(DatabaseFileTest, KeypointsLieInsideTheStoredImage) {
   const FileLayout f(bytes_);
-  const size_t kp = f.Section(keyframe_file::kKeypoints);  // keyframe 0's first keypoint
+  // Keyframe 0's first compact keypoint: x at +0, y at +2.
+  const size_t kp =
+      f.Section(keyframe_file::kCompactKeypoints) + keyframe_file::kCompactKeypointPreambleBytes;
   ASSERT_EQ(db_->keyframe(0).stored_size, cv::Size(160, 120));
-  const float inf = std::numeric_limits<float>::infinity();
-  for (const auto& [at, value] : std::vector<std::pair<size_t, float>>{
-           {kp, -5.0f}, {kp, -1.01f}, {kp, 161.5f}, {kp + 4, 121.01f}, {kp, 1e30f}, {kp + 4, -1e30f},
-           {kp, 3e38f}, {kp + 28 * 3 + 4, 1e6f}}) {
+  // Positions below -1 px cannot be written (code 0 is -1 px), nor above
+  // 65535 / 256 - 1 = 254.996 px.
+  for (const auto& [at, value] :
+       std::vector<std::pair<size_t, float>>{{kp, 161.5f},
+                                             {kp + 2, 121.125f},
+                                             {kp, 254.99609375f},
+                                             {kp + 2, 200.0f},
+                                             {kp + 10 * 3 + 2, 121.00390625f}}) {
     std::string bad = bytes_;
-    PutAt<float>(&bad, at, value);
+    PutAt<uint16_t>(&bad, at, PositionCode(value));
     WriteResealed(bad);
     EXPECT_TRUE(ThrowsWith<CorruptDatabase>(
         LoadFn(), {"keyframe 10 has a keypoint outside its stored image (160x120)"}))
         << value;
   }
-  std::string bad = bytes_;
-  PutAt<float>(&bad, kp, -inf);
-  WriteResealed(bad);
-  EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), "keypoint that is not finite"));
   // On the border and within the tolerance of a pixel: loads.
   for (const auto& [at, value] : std::vector<std::pair<size_t, float>>{
-           {kp, 0.0f}, {kp, -1.0f}, {kp, 160.0f}, {kp, 161.0f}, {kp + 4, 121.0f}}) {
+           {kp, 0.0f}, {kp, -1.0f}, {kp, 160.0f}, {kp, 161.0f}, {kp + 2, 121.0f}}) {
     std::string good = bytes_;
-    PutAt<float>(&good, at, value);
+    PutAt<uint16_t>(&good, at, PositionCode(value));
     WriteResealed(good);
-    EXPECT_EQ(Database::Load(Dir()).size(), 3u) << value;
+    const Database db = LoadVerified(Dir());
+    EXPECT_EQ(db.Keypoints(0)[0].pt.x, at == kp ? value : db_->Keypoints(0)[0].pt.x);
   }
-  // A keyframe of unknown stored size (0 x 0): the largest image bounds it.
+  // A keyframe of unknown stored size (0 x 0): positions in 1/8 px, which
+  // every code is inside (the largest image bounds them).
   std::string unknown = bytes_;
   PutAt<int32_t>(&unknown, f.Record(0) + 32, 0);
   PutAt<int32_t>(&unknown, f.Record(0) + 36, 0);
-  PutAt<float>(&unknown, kp, 5000.0f);
+  PutAt<uint16_t>(&unknown, kp, 0xffff);
   WriteResealed(unknown);
-  EXPECT_EQ(Database::Load(Dir()).size(), 3u);
-  PutAt<float>(&unknown, kp, 2e6f);
-  WriteResealed(unknown);
-  EXPECT_TRUE(ThrowsWith<CorruptDatabase>(LoadFn(), "largest possible image"));
+  EXPECT_EQ(LoadVerified(Dir()).Keypoints(0)[0].pt.x, 8190.875f);
+}
+
+// The compact keypoint: what is kept, at which precision, and what cannot
+// be kept (refused when added).
+TEST(CompactKeypointTest, KeepsWhatTheStagesUse) {
+  namespace ckp = compact_keypoint;
+  EXPECT_EQ(ckp::FractionBits(cv::Size(160, 120)), 8);
+  EXPECT_EQ(ckp::FractionBits(cv::Size(253, 10)), 8);
+  EXPECT_EQ(ckp::FractionBits(cv::Size(254, 10)), 7);
+  EXPECT_EQ(ckp::FractionBits(cv::Size(640, 480)), 6);
+  EXPECT_EQ(ckp::FractionBits(cv::Size(0, 0)), 3);  // unknown
+  EXPECT_EQ(ckp::FractionBits(cv::Size(8189, 100)), 3);
+  EXPECT_EQ(ckp::FractionBits(cv::Size(65533, 100)), 0);
+  EXPECT_EQ(ckp::FractionBits(cv::Size(65534, 100)), -1);
+  std::mt19937_64 rng(33);
+  std::uniform_real_distribution<float> angle(0.0f, 359.99f);
+  for (const int bits : {0, 3, 6, 8}) {
+    std::uniform_real_distribution<float> position(-1.0f, ckp::MaxPosition(bits));
+    const float step = 1.0f / static_cast<float>(1 << bits);
+    for (int i = 0; i < 5000; ++i) {
+      cv::KeyPoint kp(
+          position(rng), position(rng), 31.0f * std::pow(1.2f, static_cast<float>(rng() % 8)),
+          i % 50 == 0 ? -1.0f : angle(rng), 1e-3f, static_cast<int>(rng() % 8), i % 2 ? 1 : -1);
+      ASSERT_EQ(ckp::WhyNotEncodable(kp, bits), "");
+      const cv::KeyPoint q = ckp::Quantized(kp, bits);
+      EXPECT_LE(std::abs(q.pt.x - kp.pt.x), step / 2 * 1.001f) << kp.pt.x;
+      EXPECT_LE(std::abs(q.pt.y - kp.pt.y), step / 2 * 1.001f) << kp.pt.y;
+      EXPECT_LE(std::abs(q.size - kp.size), 1.0f / 16);
+      if (kp.angle < 0) {
+        EXPECT_EQ(q.angle, -1.0f);
+      } else {
+        const float d = std::abs(q.angle - kp.angle);
+        EXPECT_LE(std::min(d, 360.0f - d), 1.0f / 256 + 1e-4f) << kp.angle;
+      }
+      EXPECT_EQ(q.response, 0.0f);
+      EXPECT_EQ(q.octave, kp.octave);
+      EXPECT_EQ(q.class_id, kp.class_id);
+      testing_util::ExpectSameKeypoints(std::vector<cv::KeyPoint>{ckp::Quantized(q, bits)},
+                                        std::vector<cv::KeyPoint>{q});  // idempotent
+    }
+  }
+  EXPECT_EQ(ckp::Quantized(cv::KeyPoint(3.0f, 4.0f, 7.0f, 360.0f), 3).angle, 0.0f);
+  EXPECT_EQ(ckp::Quantized(cv::KeyPoint(3.0f, 4.0f, 7.0f, 725.0f), 3).angle, 5.0f);
+  for (const cv::KeyPoint& bad :
+       {cv::KeyPoint(-1.01f, 0, 1), cv::KeyPoint(8191.0f, 0, 1), cv::KeyPoint(0, 9000.0f, 1),
+        cv::KeyPoint(0, 0, -1.0f), cv::KeyPoint(0, 0, 8192.0f), cv::KeyPoint(0, 0, 1, 0, 0, 256),
+        cv::KeyPoint(0, 0, 1, 0, 0, -1), cv::KeyPoint(0, 0, 1, 0, 0, 0, 128),
+        cv::KeyPoint(0, 0, 1, std::nanf("")), cv::KeyPoint(std::nanf(""), 0, 1)}) {
+    EXPECT_NE(ckp::WhyNotEncodable(bad, 3), "") << bad.pt << " " << bad.size << " " << bad.octave;
+  }
+  EXPECT_NE(ckp::WhyNotEncodable(cv::KeyPoint(255.0f, 0, 1), 8), "");
+  char record[ckp::kRecordBytes] = {};
+  const uint16_t angle_code = 46080;
+  std::memcpy(record + 6, &angle_code, 2);
+  cv::KeyPoint out;
+  EXPECT_FALSE(ckp::Decode(record, 3, &out));
+  // A database keeps added keypoints quantized (a 160 x 120 stored image:
+  // 1/256 px), and refuses those it cannot keep.
+  Database db = MakeDatabase(ExtractorOptions(), 1, false);
+  FeatureSet f = db.Features(0);
+  Keyframe k = db.keyframe(0);
+  ASSERT_EQ(k.stored_size, cv::Size(160, 120));
+  k.id = 99;
+  f.keypoints[0].pt.x = 3.333f;
+  f.keypoints[0].octave = 300;
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.AddKeyframe(k, f); },
+                                          "keypoint octave outside [0, 255] (keypoint 0)"));
+  f.keypoints[0].octave = 2;
+  db.AddKeyframe(k, f);
+  EXPECT_EQ(db.Keypoints(1)[0].pt.x, 3.33203125f);  // 1109 / 256 - 1
+  EXPECT_EQ(db.Keypoints(1)[0].response, 0.0f);
+  Keyframe huge = k;
+  huge.id = 100;
+  huge.stored_size = cv::Size(70000, 70000);
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.AddKeyframe(huge, f); }, "65533 px"));
 }
 
 ExtractorOptions SmallSurf() {
@@ -1266,18 +1435,19 @@ TEST(DatabaseRowsTest, NonFiniteSurfRowsAreRefused) {
   const Database surf = MakeDatabase(SmallSurf(), 2, false);
   const std::string name = surf.Save(tmp.Path()).keyframes_file;
   const std::string bytes = ReadFileToString(tmp.Path(name));
-  const nlohmann::json manifest = nlohmann::json::parse(ReadFileToString(tmp.Path("manifest.json")));
+  const nlohmann::json manifest =
+      nlohmann::json::parse(ReadFileToString(tmp.Path("manifest.json")));
   const size_t rows = FileLayout(bytes).Section(keyframe_file::kDescriptors);
   const size_t second = rows + surf.FeatureCount(0) * 256;  // keyframe 20's first row
   for (const auto& [at, value] : std::vector<std::pair<size_t, float>>{
            {rows, std::nanf("")},
            {rows + 4 * 63, std::numeric_limits<float>::infinity()},
            {second + 8, -std::numeric_limits<float>::infinity()},
-           {bytes.size() - 4, std::nanf("7")}}) {
+           {rows + surf.num_features() * 256 - 4, std::nanf("7")}}) {
     std::string bad = bytes;
     PutAt<float>(&bad, at, value);
     WriteResealedDatabase(tmp.Path(), name, manifest, bad);
-    EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { Database::Load(tmp.Path()); },
+    EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { LoadVerified(tmp.Path()); },
                                             "has a SURF descriptor value that is not finite"));
   }
   // A subset that leaves the damaged keyframe out opens; the checksum still
@@ -1285,16 +1455,17 @@ TEST(DatabaseRowsTest, NonFiniteSurfRowsAreRefused) {
   std::string bad = bytes;
   PutAt<float>(&bad, second + 8, std::nanf(""));
   WriteResealedDatabase(tmp.Path(), name, manifest, bad);
-  EXPECT_EQ(Database::Load(tmp.Path(), KeyframeSubset::Ids({10})).size(), 1u);
+  EXPECT_EQ(LoadVerified(tmp.Path(), KeyframeSubset::Ids({10})).size(), 1u);
+  keyframe_file::Reseal(&bad, true);  // as written: the manifest agrees with its header
   bad[second + 100] ^= 1;
   WriteBytes(tmp.Path(name), bad);
-  EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { Database::Load(tmp.Path()); },
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { LoadVerified(tmp.Path()); },
                                           "descriptor section checksum mismatch"));
   // Large but finite values are data.
   std::string big = bytes;
   PutAt<float>(&big, rows, 3e38f);
   WriteResealedDatabase(tmp.Path(), name, manifest, big);
-  EXPECT_EQ(Database::Load(tmp.Path()).size(), 2u);
+  EXPECT_EQ(LoadVerified(tmp.Path()).size(), 2u);
 }
 
 // The same rules for features from outside: AddKeyframe and a query's.
@@ -1347,10 +1518,31 @@ TEST(DatabaseRowsTest, AddedAndQueryFeaturesAreChecked) {
 TEST_F(DatabaseFileTest, MutatedNamesStringsKeypointsAndRows) {
   std::mt19937_64 rng(20261717);
   const FileLayout f(bytes_);
-  const std::vector<std::string> pieces = {
-      "images/", "images", "../", "..", ".", "/", "//", "a", "000001.png", "\x1b", "\n", "\r",
-      std::string(1, '\0'), "\xe9", "\xc3\xa9", "\\", " ", "-", "_", "~", "$HOME", "*", "\x7f",
-      "\xc2\x9b", "%2e%2e"};
+  const std::vector<std::string> pieces = {"images/",
+                                           "images",
+                                           "../",
+                                           "..",
+                                           ".",
+                                           "/",
+                                           "//",
+                                           "a",
+                                           "000001.png",
+                                           "\x1b",
+                                           "\n",
+                                           "\r",
+                                           std::string(1, '\0'),
+                                           "\xe9",
+                                           "\xc3\xa9",
+                                           "\\",
+                                           " ",
+                                           "-",
+                                           "_",
+                                           "~",
+                                           "$HOME",
+                                           "*",
+                                           "\x7f",
+                                           "\xc2\x9b",
+                                           "%2e%2e"};
   int names_loaded = 0, names_refused = 0;
   for (int i = 0; i < 400; ++i) {
     std::string name;
@@ -1365,7 +1557,7 @@ TEST_F(DatabaseFileTest, MutatedNamesStringsKeypointsAndRows) {
     if (!SetStrings(&bad, k, "", name)) continue;
     WriteResealed(bad);
     try {
-      const Database db = Database::Load(Dir());
+      const Database db = LoadVerified(Dir());
       ++names_loaded;
       for (const Keyframe& kf : db.keyframes()) {
         EXPECT_TRUE(InsideImages(Dir(), kf.image_file)) << EscapeForTerminal(kf.image_file);
@@ -1390,7 +1582,7 @@ TEST_F(DatabaseFileTest, MutatedNamesStringsKeypointsAndRows) {
     std::string bytes = bytes_;
     ASSERT_TRUE(SetStrings(&bytes, k, source, ""));
     WriteResealed(bytes);
-    const Database db = Database::Load(Dir());
+    const Database db = LoadVerified(Dir());
     EXPECT_EQ(db.keyframe(k).source, source);
     nlohmann::json j = nlohmann::json::object();
     for (const Keyframe& kf : db.keyframes()) j["sources"].push_back(kf.source);
@@ -1401,25 +1593,27 @@ TEST_F(DatabaseFileTest, MutatedNamesStringsKeypointsAndRows) {
     EXPECT_TRUE(IsValidUtf8(shown));
     for (const char c : shown) EXPECT_FALSE((c >= 0 && c < 0x20) || c == 0x7f);
   }
-  // Keypoint positions: refused exactly when outside [-1, side + 1].
-  const size_t kp = f.Section(keyframe_file::kKeypoints);
+  // Keypoint positions (compact codes of a 160 x 120 stored image,
+  // c / 256 - 1 px): refused exactly when outside [-1, side + 1].
+  const size_t kp =
+      f.Section(keyframe_file::kCompactKeypoints) + keyframe_file::kCompactKeypointPreambleBytes;
   const uint64_t features = db_->num_features();
-  const float specials[] = {-1e30f, 1e30f, -5.0f, -1.0f, -0.999f, 0.0f, 160.0f, 161.0f, 161.001f,
-                            120.0f, 121.0f, 3e38f, std::numeric_limits<float>::infinity(),
-                            std::nanf("")};
+  const uint16_t specials[] = {0,     1,     255,   256,   257,    41216,  41472,
+                               41473, 30976, 31232, 31233, 0x7fff, 0xfffe, 0xffff};
   int kp_loaded = 0, kp_refused = 0;
   for (int i = 0; i < 400; ++i) {
     const uint64_t row = rng() % features;
     const bool y = rng() % 2;
-    const float value = rng() % 3 == 0 ? specials[rng() % (sizeof(specials) / sizeof(float))]
-                                       : -20.0f + static_cast<float>(rng() % 20000) / 100.0f;
+    const uint16_t code = rng() % 3 == 0 ? specials[rng() % (sizeof(specials) / 2)]
+                                         : static_cast<uint16_t>(rng() % 45000);
     std::string bad = bytes_;
-    PutAt<float>(&bad, kp + row * 28 + (y ? 4 : 0), value);
+    PutAt<uint16_t>(&bad, kp + row * 10 + (y ? 2 : 0), code);
     WriteResealed(bad);
+    const float value = code / 256.0f - 1.0f;
     const float side = y ? 120.0f : 160.0f;
     const bool possible = value >= -1.0f && value <= side + 1.0f;
     try {
-      Database::Load(Dir());
+      LoadVerified(Dir());
       ++kp_loaded;
       EXPECT_TRUE(possible) << value;
     } catch (const CorruptDatabase& e) {
@@ -1436,7 +1630,8 @@ TEST(DatabaseRowsTest, MutatedSurfRows) {
   const Database surf = MakeDatabase(SmallSurf(), 3, false);
   const std::string name = surf.Save(tmp.Path()).keyframes_file;
   const std::string bytes = ReadFileToString(tmp.Path(name));
-  const nlohmann::json manifest = nlohmann::json::parse(ReadFileToString(tmp.Path("manifest.json")));
+  const nlohmann::json manifest =
+      nlohmann::json::parse(ReadFileToString(tmp.Path("manifest.json")));
   const size_t rows = FileLayout(bytes).Section(keyframe_file::kDescriptors);
   const size_t floats = surf.num_features() * 64;
   std::mt19937_64 rng(1717);
@@ -1451,7 +1646,7 @@ TEST(DatabaseRowsTest, MutatedSurfRows) {
     std::memcpy(&value, &bits, 4);
     WriteResealedDatabase(tmp.Path(), name, manifest, bad);
     try {
-      Database::Load(tmp.Path());
+      LoadVerified(tmp.Path());
       ++loaded;
       EXPECT_TRUE(std::isfinite(value)) << bits;
     } catch (const CorruptDatabase& e) {
