@@ -179,9 +179,9 @@ def scale_table(j):
             memory_runs.append((s["keyframes"], s["memory_run"]))
     for keyframes, m in memory_runs:
         r = m["resident_increase"]
-        rows += ["", f"At {keyframes} keyframes, after {m['queries']} more bag-of-words queries (fresh views spread "
-                 f"over the map): resident **{r['private_mib']:.0f} MiB private + {r['file_mib']:.0f} MiB "
-                 f"file-backed** over the process before the open; their latency p50 "
+        rows += ["", f"At {keyframes} keyframes, a session of its own opened and asked {m['queries']} bag-of-words "
+                 f"queries (fresh views spread over the map): it added **{r['private_mib']:.0f} MiB private + "
+                 f"{r['file_mib']:.0f} MiB file-backed** resident memory to the process; their latency p50 "
                  f"{m['latency_ms']['p50']:.2f} ms, p99 {m['latency_ms']['p99']:.2f} ms, recall@1 "
                  f"{m['recall_at_1']:.3f}."]
     note = (f"{j['sample_images']} sample images augmented; at most {j['features_per_frame']} ORB features per "
@@ -195,7 +195,7 @@ def scale_table(j):
             "files in the page cache; in brackets the first open, with every file of the database dropped from "
             "the page cache first (posix_fadvise DONTNEED). Resident memory: what the open added to the "
             "process, private (RssAnon, the heap) and file-backed (RssFile, pages of the mapped files read so "
-            "far); then the same after all the runs of the table. Verify: `placedb verify` (every byte). "
+            "far); then the same after all the runs of the table (exhaustive search reads every page). Verify: `placedb verify` (every byte). "
             "Popcount limit: "
             f"{j['ns_per_distance']:.3f} ns per distance ({j['hamming_kernel']} kernel, in cache) × query features × "
             "database features.")
