@@ -278,12 +278,8 @@ void Database::VerifyAll() const {
                             " section checksum mismatch (the file is corrupted)");
     }
   }
-  if (lazy_->whole_image.data != nullptr) {
-    const LazyCheck::Section& w = lazy_->whole_image;
-    if (Checksum64(w.data, w.bytes) != w.checksum)
-      PLACEDB_THROW_CORRUPT(lazy_->shown,
-                            ": whole-image section checksum mismatch (the file is corrupted)");
-  }
+  // The whole-image section: checked once per session, here or on first use
+  // (a subset's rows were checked when they were copied, on open).
   EnsureWholeImageChecked();
   for (size_t i = 0; i < keyframes_.size(); ++i) EnsureChecked(i);
 }
