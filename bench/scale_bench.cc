@@ -49,6 +49,7 @@
 #include <fcntl.h>
 #include <fmt/format.h>
 #include <malloc.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
@@ -59,12 +60,14 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/core/utility.hpp>
 #include <random>
+#include <sstream>
 #include <thread>
 
 #include "placedb/builder/builder.h"
 #include "placedb/eval/augment.h"
 #include "placedb/eval/metrics.h"
 #include "placedb/match/hamming.h"
+#include "placedb/query/query.h"
 #include "placedb/session/place_database.h"
 #include "placedb/util/check.h"
 #include "placedb/util/timer.h"
@@ -275,6 +278,174 @@ ModeRun RunMode(const placedb::PlaceDatabase& db, const std::vector<Query>& quer
   return run;
 }
 
+// ---- The map split over partitions: worker processes and a voter --------------
+// Each worker is a process of its own (forked, so that it has the queries'
+// features; it opens the database itself, after the fork) that answers for
+// partition `part` of `num_parts` (contiguous), as a ROS worker node would:
+// requests and answers are lines of text over pipes, the answers JSON.
+//   "S q"          its shortlist for query q (PlaceDatabase::BowShortlist)
+//   "A q id,id,.." its answer among those candidates (exhaustive among them)
+//   "M"            {"open_ms", "private_mib", "file_mib"}: its open time and
+//                  the resident memory its session added
+struct Worker {
+  pid_t pid = -1;
+  FILE* to = nullptr;
+  FILE* from = nullptr;
+};
+
+std::string ReadLine(FILE* in) {
+  std::string line;
+  for (int c = std::fgetc(in); c != EOF && c != '\n'; c = std::fgetc(in))
+    line.push_back(static_cast<char>(c));
+  return line;
+}
+
+[[noreturn]] void PartitionWorker(FILE* in, FILE* out, const fs::path& dir,
+                                  const placedb::OpenOptions& open_options, int part, int num_parts,
+                                  const std::vector<Query>& queries,
+                                  const placedb::QueryOptions& options) {
+  try {
+    const Resident base = ResidentNow();
+    placedb::Timer open_timer;
+    const placedb::PlaceDatabase db = placedb::PlaceDatabase::Open(dir.string(), open_options);
+    const double open_ms = open_timer.ElapsedMs();
+    const std::vector<int32_t> all = db.keyframe_ids();
+    std::vector<int32_t> mine;
+    for (size_t i = 0; i < all.size(); ++i) {
+      if (placedb::InPartition(i, all.size(), part, num_parts,
+                               placedb::PartitionScheme::kContiguous))
+        mine.push_back(all[i]);
+    }
+    placedb::QueryOptions share = options.ForPartition();
+    share.retrieval.method = placedb::RetrievalMethod::kExhaustive;
+    for (std::string line = ReadLine(in); !line.empty(); line = ReadLine(in)) {
+      std::istringstream request(line);
+      char kind = 0;
+      request >> kind;
+      nlohmann::json answer;
+      if (kind == 'M') {
+        const Resident now = ResidentNow();
+        answer = {{"open_ms", open_ms},
+                  {"private_mib", now.anon - base.anon},
+                  {"file_mib", now.file - base.file}};
+      } else {
+        size_t q = 0;
+        request >> q;
+        if (q >= queries.size()) PLACEDB_THROW_INVALID("no query ", q);
+        if (kind == 'S') {
+          answer = db.BowShortlist(queries[q].features, &mine, options);
+        } else {
+          std::vector<int32_t> ids;
+          std::string list;
+          request >> list;
+          std::istringstream items(list);
+          for (std::string id; std::getline(items, id, ',');) ids.push_back(std::stoi(id));
+          answer = db.QueryAmong(queries[q].features, ids, share);
+        }
+      }
+      std::fputs((answer.dump() + "\n").c_str(), out);
+      std::fflush(out);
+    }
+    std::_Exit(0);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "scale_bench: partition worker %d: %s\n", part, e.what());
+    std::_Exit(1);
+  }
+}
+
+// The bag-of-words search of `options` over `num_parts` worker processes in
+// two rounds (query/result.h: shortlists, MergeShortlists, each part's share,
+// MergeQueryResults), timed at the voter (this process) per query, each
+// answer compared with the whole map's (`db`, the same options).
+nlohmann::json RunPartitions(const placedb::PlaceDatabase& db, const fs::path& dir,
+                             const placedb::OpenOptions& open_options,
+                             const std::vector<Query>& queries, int num_parts,
+                             const placedb::QueryOptions& options) {
+  std::fflush(stdout);
+  std::vector<Worker> workers;
+  for (int p = 0; p < num_parts; ++p) {
+    int down[2], up[2];
+    if (::pipe(down) != 0 || ::pipe(up) != 0) PLACEDB_THROW_INVALID("pipe failed");
+    const pid_t pid = ::fork();
+    if (pid < 0) PLACEDB_THROW_INVALID("fork failed");
+    if (pid == 0) {
+      ::close(down[1]);
+      ::close(up[0]);
+      for (const Worker& w : workers) {  // the earlier workers' pipes
+        std::fclose(w.to);
+        std::fclose(w.from);
+      }
+      PartitionWorker(::fdopen(down[0], "r"), ::fdopen(up[1], "w"), dir, open_options, p, num_parts,
+                      queries, options);
+    }
+    ::close(down[0]);
+    ::close(up[1]);
+    workers.push_back({pid, ::fdopen(down[1], "w"), ::fdopen(up[0], "r")});
+  }
+  const auto ask = [&](Worker& w, const std::string& request) {
+    std::fputs((request + "\n").c_str(), w.to);
+    std::fflush(w.to);
+  };
+  const auto answer = [&](Worker& w) {
+    const std::string line = ReadLine(w.from);
+    if (line.empty()) PLACEDB_THROW_INVALID("a partition worker stopped (see its error above)");
+    return nlohmann::json::parse(line);
+  };
+  const size_t n = db.size();
+  std::vector<double> ms;
+  int same = 0, correct = 0, whole_correct = 0;
+  double examined = 0.0;
+  const auto run = [&](size_t q, bool counted) {
+    placedb::Timer t;
+    std::vector<placedb::Shortlist> lists;
+    for (Worker& w : workers) ask(w, fmt::format("S {}", q));
+    for (Worker& w : workers) lists.push_back(answer(w).get<placedb::Shortlist>());
+    const std::vector<placedb::ShortlistEntry> candidates =
+        placedb::MergeShortlists(lists, options);
+    std::vector<int> asked;
+    for (int p = 0; p < num_parts; ++p) {
+      std::string ids;
+      for (const placedb::ShortlistEntry& c : candidates) {
+        if (placedb::InPartition(c.index, n, p, num_parts, placedb::PartitionScheme::kContiguous))
+          ids += (ids.empty() ? "" : ",") + std::to_string(c.keyframe_id);
+      }
+      if (ids.empty()) continue;
+      ask(workers[p], fmt::format("A {} {}", q, ids));
+      asked.push_back(p);
+    }
+    std::vector<placedb::QueryResult> parts;
+    for (const int p : asked) parts.push_back(answer(workers[p]).get<placedb::QueryResult>());
+    const placedb::QueryResult merged = placedb::MergeQueryResults(parts, options);
+    const double elapsed = t.ElapsedMs();
+    if (!counted) return;
+    ms.push_back(elapsed);
+    const placedb::QueryResult whole = db.Query(queries[q].features, options);
+    same += merged.ranked == whole.ranked;
+    examined += merged.num_examined;
+    correct += !merged.ranked.empty() && merged.ranked.front().keyframe_id == queries[q].truth;
+    whole_correct += !whole.ranked.empty() && whole.ranked.front().keyframe_id == queries[q].truth;
+  };
+  run(0, false);  // warm-up, not counted
+  for (size_t q = 0; q < queries.size(); ++q) run(q, true);
+  nlohmann::json memory = nlohmann::json::array();
+  for (Worker& w : workers) {
+    ask(w, "M");
+    memory.push_back(answer(w));
+  }
+  for (Worker& w : workers) {
+    std::fclose(w.to);  // EOF: the worker exits
+    std::fclose(w.from);
+    int status = 0;
+    ::waitpid(w.pid, &status, 0);
+  }
+  const LatencyStats s = placedb::ComputeLatencyStats(ms);
+  const double nq = static_cast<double>(queries.size());
+  return {{"partitions", num_parts},        {"queries", queries.size()},
+          {"latency_ms", StatsJson(s)},     {"same_answers", same},
+          {"recall_at_1", correct / nq},    {"whole_recall_at_1", whole_correct / nq},
+          {"examined_mean", examined / nq}, {"workers", memory}};
+}
+
 // `n` of the indices 0..count-1, spread evenly.
 std::vector<size_t> Spread(size_t count, size_t n) {
   std::vector<size_t> out;
@@ -308,7 +479,7 @@ int main(int argc, char** argv) {
   int guided_candidates = placedb::RetrievalOptions().guided_candidates;
   std::vector<int> compare_guided = {0, 10};
   double deadline_ms = 2.0, cluster_radius = 0.5, whole_image_weight = 50.0;
-  int whole_image_candidates = 2, memory_queries = 10000;
+  int whole_image_candidates = 2, memory_queries = 10000, partitions = 4;
   std::string out = "out/bench/scale", json_path, data = PLACEDB_DATA_DIR;
   app.add_option("--sizes", sizes, "database sizes, keyframes")
       ->delimiter(',')
@@ -350,6 +521,11 @@ int main(int argc, char** argv) {
   app.add_option("--memory-queries", memory_queries,
                  "at the largest size, resident memory after this many more bow queries (0: none)")
       ->check(CLI::Range(0, 1000000))
+      ->capture_default_str();
+  app.add_option("--partitions", partitions,
+                 "at the largest size, bow over this many partition processes in two rounds, "
+                 "answers compared with the whole map's (0: not)")
+      ->check(CLI::Range(0, 64))
       ->capture_default_str();
   app.add_option("--cluster-radius", cluster_radius,
                  "cluster radius, metres (views of one "
@@ -561,6 +737,31 @@ int main(int argc, char** argv) {
             memory_queries, after.anon - before_session.anon, after.file - before_session.file,
             s.p50, s.p99, static_cast<double>(correct) / memory_queries);
       }
+      // The map split over partition processes (bow, the default options).
+      nlohmann::json partition_run;
+      if (partitions > 0 && n == *std::max_element(sizes.begin(), sizes.end()) &&
+          std::find(modes.begin(), modes.end(), "bow") != modes.end()) {
+        placedb::QueryOptions options;
+        options.retrieval.method = placedb::RetrievalMethod::kBow;
+        options.retrieval.bow_candidates = bow_candidates;
+        options.retrieval.guided_candidates = guided_candidates;
+        partition_run = RunPartitions(db, dir, open_options, queries, partitions, options);
+        const nlohmann::json& p = partition_run;
+        fmt::print(
+            "  bow over {} partition processes (two rounds): p50 {:.2f} ms p99 {:.2f} ms at the "
+            "voter; {} of {} answers equal the whole map's; recall@1 {:.3f} (whole map {:.3f})\n",
+            partitions, p["latency_ms"]["p50"].get<double>(), p["latency_ms"]["p99"].get<double>(),
+            p["same_answers"].get<int>(), queries.size(), p["recall_at_1"].get<double>(),
+            p["whole_recall_at_1"].get<double>());
+        for (size_t w = 0; w < p["workers"].size(); ++w) {
+          const nlohmann::json& m = p["workers"][w];
+          fmt::print(
+              "    partition {}: open {:.1f} ms, resident +{:.0f} MiB private, +{:.0f} MiB "
+              "file-backed\n",
+              w, m["open_ms"].get<double>(), m["private_mib"].get<double>(),
+              m["file_mib"].get<double>());
+        }
+      }
       // Every byte checked (placedb verify).
       placedb::Timer verify_timer;
       db.Verify();
@@ -594,6 +795,7 @@ int main(int argc, char** argv) {
           {"popcount_limit_ms", limit_ms},
           {"modes", nlohmann::json::array()}};
       if (!memory_run.is_null()) size["memory_run"] = memory_run;
+      if (!partition_run.is_null()) size["partition_run"] = partition_run;
       fmt::print(
           "{} keyframes, {} features: build {:.0f} s{}, database {:.1f} MB, open {:.1f} ms ({} "
           "{:.1f} ms), "

@@ -11,7 +11,7 @@
 //   PlaceDatabase        the session: open a database (all of it, a partition,
 //                        an id list), query an image or features, explain a
 //                        match, add and remove keyframes while querying, save
-//   QueryOptions, QueryResult, MergeQueryResults
+//   QueryOptions, QueryResult, MergeQueryResults, Shortlist, MergeShortlists
 //                        a query's options (retrieve, match, verify, decide),
 //                        its answer and the voting merge of partial answers
 //   BuildDatabase        a database from frames (BuildOptions, BuildReport)

@@ -1,10 +1,12 @@
 // The voting step: partial answers of disjoint partitions merged into the
 // whole database's answer.
 #include <algorithm>
+#include <unordered_map>
 #include <unordered_set>
 
 #include "placedb/query/order.h"
 #include "placedb/query/result.h"
+#include "placedb/retrieval/retriever.h"
 #include "placedb/util/check.h"
 
 namespace placedb {
@@ -59,6 +61,65 @@ QueryResult MergeQueryResults(const std::vector<QueryResult>& parts, const Query
     merged.cluster = parts.front().cluster;
   }
   return merged;
+}
+
+namespace {
+
+// The union of the parts' lists `list`: one entry per keyframe (a keyframe
+// offered by two parts must come with the same values), best score first,
+// ties: the lower index.
+std::vector<ShortlistEntry> UnionOf(const std::vector<Shortlist>& parts,
+                                    std::vector<ShortlistEntry> Shortlist::*list,
+                                    const char* what) {
+  std::vector<ShortlistEntry> all;
+  std::unordered_map<uint32_t, ShortlistEntry> seen;
+  for (const Shortlist& p : parts) {
+    for (const ShortlistEntry& e : p.*list) {
+      const auto [it, inserted] = seen.emplace(e.index, e);
+      if (inserted) {
+        all.push_back(e);
+      } else if (!(it->second == e)) {
+        PLACEDB_THROW_INVALID("keyframe index ", e.index, " is in two ", what,
+                              " shortlists with different values (the parts must query one "
+                              "database with the same options)");
+      }
+    }
+  }
+  std::sort(all.begin(), all.end(), [](const ShortlistEntry& a, const ShortlistEntry& b) {
+    return a.score != b.score ? a.score > b.score : a.index < b.index;
+  });
+  return all;
+}
+
+}  // namespace
+
+std::vector<ShortlistEntry> MergeShortlists(const std::vector<Shortlist>& parts,
+                                            const QueryOptions& options) {
+  PLACEDB_CHECK_OPTIONS(options);
+  std::vector<ShortlistEntry> bow = UnionOf(parts, &Shortlist::bow, "bag-of-words");
+  if (bow.size() > static_cast<size_t>(options.retrieval.bow_candidates))
+    bow.resize(static_cast<size_t>(options.retrieval.bow_candidates));
+  // The guided cut, as the whole database's search makes it.
+  std::vector<BowCandidate> scored;
+  scored.reserve(bow.size());
+  std::unordered_map<uint32_t, const ShortlistEntry*> by_index;
+  for (const ShortlistEntry& e : bow) {
+    scored.push_back({e.index, e.score, e.guided});
+    by_index.emplace(e.index, &e);
+  }
+  std::vector<ShortlistEntry> out;
+  std::unordered_set<uint32_t> have;
+  for (const Candidate& c : SelectGuidedCandidates(scored, options.retrieval)) {
+    out.push_back(*by_index.at(c.index));
+    have.insert(c.index);
+  }
+  std::vector<ShortlistEntry> whole = UnionOf(parts, &Shortlist::whole_image, "whole-image");
+  if (whole.size() > static_cast<size_t>(options.whole_image_candidates))
+    whole.resize(static_cast<size_t>(options.whole_image_candidates));
+  for (const ShortlistEntry& e : whole) {
+    if (have.insert(e.index).second) out.push_back(e);
+  }
+  return out;
 }
 
 }  // namespace placedb

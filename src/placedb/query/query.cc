@@ -386,13 +386,12 @@ WholeImageScores ScoreWholeImages(const Database& db, const FeatureSet& query,
   return s;
 }
 
-// Appends the whole_image_candidates keyframes of the restriction most similar
-// to the query (then the lower index) that retrieval did not find.
-void AddWholeImageCandidates(const WholeImageScores& whole, const QueryOptions& options,
-                             const std::vector<uint32_t>* among, const uint8_t* excluded,
-                             std::vector<Candidate>* candidates) {
-  const size_t m = static_cast<size_t>(options.whole_image_candidates);
-  if (m == 0) return;
+// The `m` keyframes of the restriction most similar to the query (then the
+// lower index), most similar first.
+std::vector<uint32_t> MostSimilarWholeImages(const WholeImageScores& whole, size_t m,
+                                             const std::vector<uint32_t>* among,
+                                             const uint8_t* excluded) {
+  if (m == 0) return {};
   // The best m in one pass: a min-heap on (similarity, then the higher index
   // first out), no copy of the restriction.
   const auto worse = [&](uint32_t a, uint32_t b) {  // a ranks after b
@@ -419,6 +418,16 @@ void AddWholeImageCandidates(const WholeImageScores& whole, const QueryOptions& 
     for (uint32_t i = 0; i < whole.similarity.size(); ++i) consider(i);
   }
   std::sort(best.begin(), best.end(), [&](uint32_t a, uint32_t b) { return worse(b, a); });
+  return best;
+}
+
+// Appends the whole_image_candidates keyframes of the restriction most similar
+// to the query (then the lower index) that retrieval did not find.
+void AddWholeImageCandidates(const WholeImageScores& whole, const QueryOptions& options,
+                             const std::vector<uint32_t>* among, const uint8_t* excluded,
+                             std::vector<Candidate>* candidates) {
+  const std::vector<uint32_t> best = MostSimilarWholeImages(
+      whole, static_cast<size_t>(options.whole_image_candidates), among, excluded);
   std::unordered_set<uint32_t> have;
   for (const Candidate& c : *candidates) have.insert(c.index);
   for (const uint32_t i : best) {
@@ -572,15 +581,11 @@ QueryResult RunClusterSearch(const Database& db, const FeatureSet& query,
 
 }  // namespace
 
-QueryResult QueryDatabase(const Database& db, const FeatureSet& query, const QueryOptions& options,
-                          const QueryContext& context) {
-  PLACEDB_CHECK_OPTIONS(options);
-  ValidateQueryFeatures(query, db);
-  if (!db.has_features()) {
-    PLACEDB_THROW_INVALID("the database was opened as a keyframe table, without features");
-  }
-  const Timer own_clock;
-  const Timer& clock = context.clock != nullptr ? *context.clock : own_clock;
+namespace {
+
+// context.among sorted and unique (empty when it is nullptr), after checking
+// it and the mask of removed keyframes against `db` (InvalidArgument).
+std::vector<uint32_t> CheckedRestriction(const Database& db, const QueryContext& context) {
   std::vector<uint32_t> among;
   if (context.among != nullptr) {
     among = *context.among;
@@ -591,12 +596,30 @@ QueryResult QueryDatabase(const Database& db, const FeatureSet& query, const Que
                             db.size(), " keyframes)");
     }
   }
-  if (context.excluded != nullptr) {
-    if (context.excluded->size() != db.size()) {
-      PLACEDB_THROW_INVALID("the mask of removed keyframes has ", context.excluded->size(),
-                            " entries for ", db.size(), " keyframes");
-    }
+  if (context.excluded != nullptr && context.excluded->size() != db.size()) {
+    PLACEDB_THROW_INVALID("the mask of removed keyframes has ", context.excluded->size(),
+                          " entries for ", db.size(), " keyframes");
   }
+  return among;
+}
+
+// What every entry point checks first.
+void CheckQueryInput(const Database& db, const FeatureSet& query, const QueryOptions& options) {
+  PLACEDB_CHECK_OPTIONS(options);
+  ValidateQueryFeatures(query, db);
+  if (!db.has_features()) {
+    PLACEDB_THROW_INVALID("the database was opened as a keyframe table, without features");
+  }
+}
+
+}  // namespace
+
+QueryResult QueryDatabase(const Database& db, const FeatureSet& query, const QueryOptions& options,
+                          const QueryContext& context) {
+  CheckQueryInput(db, query, options);
+  const Timer own_clock;
+  const Timer& clock = context.clock != nullptr ? *context.clock : own_clock;
+  const std::vector<uint32_t> among = CheckedRestriction(db, context);
   std::unique_ptr<Retriever> own_retriever;
   const Retriever* retriever = context.retriever;
   if (retriever == nullptr) {
@@ -610,6 +633,39 @@ QueryResult QueryDatabase(const Database& db, const FeatureSet& query, const Que
           : RunStages(db, query, options, context, restriction, *retriever, clock);
   result.times.total_ms = clock.ElapsedMs();
   return result;
+}
+
+Shortlist ShortlistDatabase(const Database& db, const FeatureSet& query,
+                            const QueryOptions& options, const QueryContext& context) {
+  CheckQueryInput(db, query, options);
+  if (options.retrieval.method != RetrievalMethod::kBow) {
+    PLACEDB_THROW_INVALID("a shortlist is the first round of a bow search, not of ",
+                          RetrievalMethodName(options.retrieval.method), " search");
+  }
+  if (context.bow == nullptr) {
+    PLACEDB_THROW_INVALID(
+        "bow search needs a bag-of-words index: rebuild the database with `index` set to bow");
+  }
+  const Timer own_clock;
+  const Timer& clock = context.clock != nullptr ? *context.clock : own_clock;
+  const std::vector<uint32_t> among = CheckedRestriction(db, context);
+  const std::vector<uint32_t>* restriction = context.among ? &among : nullptr;
+  const uint8_t* excluded = context.excluded != nullptr ? context.excluded->data() : nullptr;
+  const Deadline deadline(clock, options.deadline_ms);
+  Shortlist out;
+  const std::vector<BowCandidate> scored =
+      ScoreBowCandidates(*context.bow, db, query, options.retrieval, options.match, restriction,
+                         excluded, deadline, &out.deadline_reached);
+  for (const BowCandidate& c : scored)
+    out.bow.push_back({c.index, db.keyframe(c.index).id, c.score, c.guided});
+  const WholeImageScores whole = ScoreWholeImages(db, query, options, false);
+  if (!whole.similarity.empty()) {
+    for (const uint32_t i : MostSimilarWholeImages(
+             whole, static_cast<size_t>(options.whole_image_candidates), restriction, excluded))
+      out.whole_image.push_back({i, db.keyframe(i).id, whole.similarity[i], -1});
+  }
+  out.retrieve_ms = clock.ElapsedMs();
+  return out;
 }
 
 MatchDetail MatchKeyframe(const Database& db, const FeatureSet& query, size_t index,

@@ -40,6 +40,8 @@ void to_json(nlohmann::json& j, const QueryResult& r);
 void from_json(const nlohmann::json& j, QueryResult& r);
 void to_json(nlohmann::json& j, const RankedKeyframe& r);
 void from_json(const nlohmann::json& j, RankedKeyframe& r);
+void to_json(nlohmann::json& j, const Shortlist& s);
+void from_json(const nlohmann::json& j, Shortlist& s);
 
 // Throws InvalidArgument unless `features` can be matched against `db`:
 // one descriptor row per keypoint, the database's descriptor type and width,
@@ -98,6 +100,14 @@ struct QueryContext {
 // Runs retrieve -> match -> verify -> decide for already-extracted features.
 QueryResult QueryDatabase(const Database& db, const FeatureSet& query, const QueryOptions& options,
                           const QueryContext& context = QueryContext());
+
+// Round 1 of a bag-of-words search split over partitions (result.h,
+// MergeShortlists): the part's shortlist, the part being context.among (or
+// the whole database). options.retrieval.method must be bow
+// (InvalidArgument); the rest of `context` as for QueryDatabase.
+Shortlist ShortlistDatabase(const Database& db, const FeatureSet& query,
+                            const QueryOptions& options,
+                            const QueryContext& context = QueryContext());
 
 // The match and verify stages of `options` on keyframe `index` of `db`
 // (verify when options.verify.enabled and at least min_matches matched): the

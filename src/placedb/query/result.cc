@@ -1,4 +1,5 @@
 // A query's answer: equality and its JSON.
+#include <cmath>
 #include <nlohmann/json.hpp>
 
 #include "placedb/query/query.h"
@@ -20,6 +21,10 @@ bool SequenceEvidence::operator==(const SequenceEvidence& o) const {
   return keyframe_id == o.keyframe_id && score == o.score && frames == o.frames &&
          velocity == o.velocity && frame_keyframe_id == o.frame_keyframe_id &&
          frame_score == o.frame_score && frame_matched == o.frame_matched;
+}
+
+bool ShortlistEntry::operator==(const ShortlistEntry& o) const {
+  return index == o.index && keyframe_id == o.keyframe_id && score == o.score && guided == o.guided;
 }
 
 double QueryResult::decision_score() const {
@@ -185,6 +190,52 @@ void from_json(const nlohmann::json& json, QueryResult& out) {
   r.times.verify_ms = t.Number("verify");
   r.times.total_ms = t.Number("total");
   out = std::move(r);
+}
+
+void to_json(nlohmann::json& j, const Shortlist& s) {
+  const auto entries = [](const std::vector<ShortlistEntry>& list) {
+    nlohmann::json a = nlohmann::json::array();
+    for (const ShortlistEntry& e : list) a.push_back({e.index, e.keyframe_id, e.score, e.guided});
+    return a;
+  };
+  j = {{"bow", entries(s.bow)},
+       {"whole_image", entries(s.whole_image)},
+       {"deadline_reached", s.deadline_reached},
+       {"retrieve_ms", s.retrieve_ms}};
+}
+
+void from_json(const nlohmann::json& json, Shortlist& out) {
+  const JsonReader j(json, "shortlist");
+  Shortlist s;
+  const auto entries = [&](const char* key, std::vector<ShortlistEntry>* list) {
+    const nlohmann::json& a = j.Member(key);
+    if (!a.is_array()) j.Fail(key, "is not an array");
+    for (size_t i = 0; i < a.size(); ++i) {
+      const nlohmann::json& e = a[i];
+      const std::string where = std::string(key) + "[" + std::to_string(i) + "]";
+      if (!e.is_array() || e.size() != 4 || !e[0].is_number_unsigned() ||
+          !e[1].is_number_integer() || !e[2].is_number() || !e[3].is_number_integer()) {
+        j.Fail(where.c_str(), "is not [index, keyframe_id, score, guided]");
+      }
+      ShortlistEntry x;
+      const uint64_t index = e[0].get<uint64_t>();
+      const int64_t id = e[1].get<int64_t>(), guided = e[3].get<int64_t>();
+      x.score = e[2].get<double>();
+      if (index > UINT32_MAX || id < INT32_MIN || id > INT32_MAX || guided < -1 ||
+          guided > INT32_MAX || !std::isfinite(x.score)) {
+        j.Fail(where.c_str(), "has a value out of range");
+      }
+      x.index = static_cast<uint32_t>(index);
+      x.keyframe_id = static_cast<int32_t>(id);
+      x.guided = static_cast<int>(guided);
+      list->push_back(x);
+    }
+  };
+  entries("bow", &s.bow);
+  entries("whole_image", &s.whole_image);
+  s.deadline_reached = j.Boolean("deadline_reached");
+  s.retrieve_ms = j.Number("retrieve_ms");
+  out = std::move(s);
 }
 
 std::string QueryResultToJson(const QueryResult& result, int indent) {

@@ -183,6 +183,43 @@ struct MatchDetail {
 // two parts or verified and unverified entries are mixed.
 QueryResult MergeQueryResults(const std::vector<QueryResult>& parts, const QueryOptions& options);
 
+// ---- Bag-of-words search split over partitions, exactly ----------------------
+// MergeQueryResults is exact for exhaustive search, but a bag-of-words part
+// would pick its own best candidates, which are not the whole database's.
+// Two rounds make it exact:
+//   1. every part sends its shortlist (ShortlistDatabase, query.h): its best
+//      bow_candidates by bag-of-words score with their guided match counts,
+//      and its whole_image_candidates most similar keyframes;
+//   2. the voter merges them (MergeShortlists) into the candidates the whole
+//      database's search would examine; every part matches and verifies its
+//      own share of them (exhaustive search among them, with
+//      options.ForPartition()), and MergeQueryResults merges the answers.
+// The merged answer ranks the same keyframes with the same matches, inliers
+// and scores as the whole database's bag-of-words search (tested;
+// scale_bench's partition row). The parts must hold one database: entries
+// carry the keyframe's index in it, which breaks ties.
+struct ShortlistEntry {
+  uint32_t index = 0;  // the keyframe's index in the database
+  int32_t keyframe_id = 0;
+  double score = 0.0;  // bag-of-words score, or whole-image similarity
+  int guided = -1;     // guided matches; -1: not counted
+  bool operator==(const ShortlistEntry& o) const;
+};
+struct Shortlist {
+  std::vector<ShortlistEntry> bow;          // best score first (ties: lower index)
+  std::vector<ShortlistEntry> whole_image;  // most similar first (ties: lower index)
+  bool deadline_reached = false;            // the part's scoring was cut short
+  double retrieve_ms = 0.0;
+};
+// The candidates the whole database's bag-of-words search examines, from
+// every part's shortlist (computed with the same options): the best
+// bow_candidates of the union by score, cut to guided_candidates by guided
+// count as the bow search does, then the whole_image_candidates most similar
+// of the union that are not among them. InvalidArgument when a keyframe
+// comes from two parts with different values, or an entry is malformed.
+std::vector<ShortlistEntry> MergeShortlists(const std::vector<Shortlist>& parts,
+                                            const QueryOptions& options);
+
 // The answer as the library's JSON text (`indent` -1: one line), and back:
 // QueryResultFromJson validates every field (InvalidArgument naming it), for
 // answers received over the wire. The CLI's --json, eval's records and the

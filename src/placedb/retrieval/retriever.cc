@@ -2,8 +2,8 @@
 
 #include <algorithm>
 
-#include "placedb/retrieval/growing_bow_index.h"
 #include "placedb/match/ratio_matcher.h"
+#include "placedb/retrieval/growing_bow_index.h"
 #include "placedb/util/check.h"
 #include "placedb/util/options.h"
 
@@ -59,72 +59,85 @@ class BowRetriever : public Retriever {
  public:
   BowRetriever(const GrowingBowIndex& index, const RetrievalOptions& options,
                const MatchOptions& match, RetrievalMethod method)
-      : index_(index),
-        candidates_(static_cast<size_t>(options.bow_candidates)),
-        guided_(static_cast<size_t>(options.guided_candidates)),
-        match_(match),
-        method_(method) {}
+      : index_(index), options_(options), match_(match), method_(method) {}
   RetrievalMethod method() const override { return method_; }
 
   std::vector<Candidate> Retrieve(const Database& db, const FeatureSet& query,
                                   const std::vector<uint32_t>* among, const uint8_t* excluded,
                                   const Deadline& deadline, bool* stopped) const override {
-    if (index_.size() != db.size()) {
-      PLACEDB_THROW_INVALID("the bag-of-words index has ", index_.size(),
-                            " keyframes but the database ", db.size());
-    }
-    std::vector<int8_t> laplacian;
-    const DescriptorBlock block = MakeDescriptorBlock(query, &laplacian);
-    const bool guided = guided_ > 0;
-    std::vector<uint32_t> nodes;
-    const BowVector words = index_.Transform(block, guided ? &nodes : nullptr);
-    bool late = false;
-    std::vector<Candidate> out;
-    for (const BowIndex::Scored& s : index_.Query(words, candidates_, among, deadline, &late, excluded))
-      out.push_back({s.index, s.score});
-    if (stopped != nullptr) *stopped = late;
-    // Out of time, the bag-of-words order stands.
-    if (!guided || late || out.size() <= guided_) return out;
-    const GuidedMatcher guided_matcher(block, nodes.data(), nodes.size(), match_);
-    struct Ranked {
-      Candidate c;
-      int guided;
-    };
-    // Counted while the mean count so far still fits before the deadline
-    // (the first always); the uncounted keep their bag-of-words order after
-    // the counted ones.
-    std::vector<Ranked> ranked;
-    ranked.reserve(out.size());
-    Timer counting;
-    for (const Candidate& c : out) {
-      if (!ranked.empty() && !deadline.Fits(counting.ElapsedMs() / ranked.size())) {
-        if (stopped != nullptr) *stopped = true;
-        break;
-      }
-      const Span<uint32_t> kf = index_.DirectNodes(c.index);
-      ranked.push_back({c, guided_matcher.Count(db.Descriptors(c.index), kf.data(), kf.size())});
-    }
-    const size_t counted = ranked.size();
-    for (size_t i = counted; i < out.size(); ++i) ranked.push_back({out[i], -1});
-    // Most guided matches first; then the bag-of-words order (stable).
-    std::stable_sort(ranked.begin(), ranked.begin() + static_cast<std::ptrdiff_t>(counted),
-                     [](const Ranked& a, const Ranked& b) { return a.guided > b.guided; });
-    ranked.resize(guided_);
-    out.clear();
-    for (const Ranked& r : ranked)
-      out.push_back({r.c.index, static_cast<double>(std::max(0, r.guided))});
-    return out;
+    return SelectGuidedCandidates(
+        ScoreBowCandidates(index_, db, query, options_, match_, among, excluded, deadline, stopped),
+        options_);
   }
 
  private:
   const GrowingBowIndex& index_;
-  size_t candidates_;
-  size_t guided_;
+  RetrievalOptions options_;
   MatchOptions match_;
   RetrievalMethod method_;
 };
 
 }  // namespace
+
+std::vector<BowCandidate> ScoreBowCandidates(
+    const GrowingBowIndex& index, const Database& db, const FeatureSet& query,
+    const RetrievalOptions& options, const MatchOptions& match, const std::vector<uint32_t>* among,
+    const uint8_t* excluded, const Deadline& deadline, bool* stopped) {
+  if (stopped != nullptr) *stopped = false;
+  if (index.size() != db.size()) {
+    PLACEDB_THROW_INVALID("the bag-of-words index has ", index.size(),
+                          " keyframes but the database ", db.size());
+  }
+  std::vector<int8_t> laplacian;
+  const DescriptorBlock block = MakeDescriptorBlock(query, &laplacian);
+  const bool guided = options.guided_candidates > 0;
+  std::vector<uint32_t> nodes;
+  const BowVector words = index.Transform(block, guided ? &nodes : nullptr);
+  bool late = false;
+  std::vector<BowCandidate> out;
+  for (const BowIndex::Scored& s : index.Query(words, static_cast<size_t>(options.bow_candidates),
+                                               among, deadline, &late, excluded))
+    out.push_back({s.index, s.score, -1});
+  if (stopped != nullptr) *stopped = late;
+  // Out of time, the bag-of-words order stands.
+  if (!guided || late) return out;
+  const GuidedMatcher guided_matcher(block, nodes.data(), nodes.size(), match);
+  // Counted while the mean count so far still fits before the deadline (the
+  // first always).
+  Timer counting;
+  for (size_t i = 0; i < out.size(); ++i) {
+    if (i > 0 && !deadline.Fits(counting.ElapsedMs() / static_cast<double>(i))) {
+      if (stopped != nullptr) *stopped = true;
+      break;
+    }
+    const Span<uint32_t> kf = index.DirectNodes(out[i].index);
+    out[i].guided = guided_matcher.Count(db.Descriptors(out[i].index), kf.data(), kf.size());
+  }
+  return out;
+}
+
+std::vector<Candidate> SelectGuidedCandidates(const std::vector<BowCandidate>& scored,
+                                              const RetrievalOptions& options) {
+  const size_t guided = static_cast<size_t>(options.guided_candidates);
+  std::vector<Candidate> out;
+  out.reserve(scored.size());
+  // Not ranked, or no count at all (out of time while scoring): the
+  // bag-of-words order stands, every candidate kept.
+  if (guided == 0 || scored.size() <= guided || scored.front().guided < 0) {
+    for (const BowCandidate& c : scored) out.push_back({c.index, c.score});
+    return out;
+  }
+  // Most guided matches first, then the bag-of-words order (stable); the
+  // uncounted (-1) after the counted, in their order.
+  std::vector<BowCandidate> ranked = scored;
+  std::stable_sort(ranked.begin(), ranked.end(), [](const BowCandidate& a, const BowCandidate& b) {
+    return a.guided > b.guided;
+  });
+  ranked.resize(guided);
+  for (const BowCandidate& r : ranked)
+    out.push_back({r.index, static_cast<double>(std::max(0, r.guided))});
+  return out;
+}
 
 std::unique_ptr<Retriever> Retriever::Create(const RetrievalOptions& options,
                                              const Database& /*db*/, const GrowingBowIndex* bow,

@@ -14,10 +14,10 @@
 #include <vector>
 
 #include "placedb/feature/types.h"
-#include "placedb/storage/database.h"
 #include "placedb/match/ratio_matcher.h"
-#include "placedb/util/timer.h"
 #include "placedb/retrieval/options.h"
+#include "placedb/storage/database.h"
+#include "placedb/util/timer.h"
 
 namespace placedb {
 
@@ -29,6 +29,35 @@ struct Candidate {
   uint32_t index = 0;
   double prior = 0.0;
 };
+
+// A bag-of-words candidate before the guided cut (retriever.cc's bow
+// search in two steps, so that a search split over partitions can merge the
+// first step's lists before it takes the second: query/query.h,
+// ShortlistDatabase).
+struct BowCandidate {
+  uint32_t index = 0;  // keyframe index in the database
+  double score = 0.0;  // bag-of-words score (BowIndex::Query)
+  int guided = -1;     // guided matches; -1: not counted (no guided ranking, or out of time)
+};
+
+// Step 1: the best options.bow_candidates keyframes of `among` by
+// bag-of-words score (best first, ties: the lower index), each with its
+// guided match count when options.guided_candidates > 0 (counted while the
+// deadline allows, the first always; the uncounted keep -1). *stopped is set
+// when the deadline cut the scoring or the counting.
+std::vector<BowCandidate> ScoreBowCandidates(
+    const GrowingBowIndex& index, const Database& db, const FeatureSet& query,
+    const RetrievalOptions& options, const MatchOptions& match, const std::vector<uint32_t>* among,
+    const uint8_t* excluded, const Deadline& deadline, bool* stopped);
+
+// Step 2, on step 1's list (best bag-of-words score first): when guided
+// ranking is on and the list is longer than guided_candidates, the
+// guided_candidates counted ones with the most guided matches (ties: the
+// list's order; the uncounted after the counted), their prior the count;
+// else (or when none was counted: out of time) the whole list in its order,
+// the prior the score.
+std::vector<Candidate> SelectGuidedCandidates(const std::vector<BowCandidate>& scored,
+                                              const RetrievalOptions& options);
 
 class Retriever {
  public:

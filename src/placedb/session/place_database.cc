@@ -70,7 +70,39 @@ struct PlaceDatabase::Impl {
   int64_t stored_next_free = 1;
   std::optional<uint64_t> stored_removed;
   std::string removed_since;
+
+  // A query's context (under `state`): the restriction `ids` (nullptr:
+  // none) as the sorted indices the stages take, into *among (InvalidArgument
+  // for an id not in the database), removed keyframes left out by a mask each
+  // stage tests (no per-query work for them), the pool, the indexes.
+  QueryContext Context(const std::vector<int32_t>* ids, std::vector<uint32_t>* among) const;
 };
+
+QueryContext PlaceDatabase::Impl::Context(const std::vector<int32_t>* ids,
+                                          std::vector<uint32_t>* among) const {
+  among->clear();
+  if (ids != nullptr) {
+    among->reserve(ids->size());
+    for (const int32_t id : *ids) {
+      const int index = db.IndexOfId(id);
+      if (index < 0) PLACEDB_THROW_INVALID("no keyframe ", id, " in the database ", dir);
+      among->push_back(static_cast<uint32_t>(index));
+    }
+    std::sort(among->begin(), among->end());
+    among->erase(std::unique(among->begin(), among->end()), among->end());
+  }
+  QueryContext context;
+  context.bow = bow ? &*bow : nullptr;
+  context.clusters = &clusters;
+  context.among = ids != nullptr ? among : nullptr;
+  if (num_removed > 0) {
+    context.excluded = &removed;
+    context.num_excluded = num_removed;
+  }
+  context.pool = pool.get();
+  context.image_dir = dir;
+  return context;
+}
 
 PlaceDatabase::Impl::~Impl() {
   std::error_code ignore;
@@ -470,36 +502,35 @@ QueryResult PlaceDatabase::Run(const FeatureSet& features, const std::vector<int
   } else {
     lock.lock();
   }
-  // The restriction, as the sorted indices the stages take.
   std::vector<uint32_t> among;
-  if (among_ids != nullptr) {
-    among.reserve(among_ids->size());
-    for (const int32_t id : *among_ids) {
-      const int index = impl_->db.IndexOfId(id);
-      if (index < 0) PLACEDB_THROW_INVALID("no keyframe ", id, " in the database ", impl_->dir);
-      among.push_back(static_cast<uint32_t>(index));
-    }
-    std::sort(among.begin(), among.end());
-    among.erase(std::unique(among.begin(), among.end()), among.end());
-  }
-  QueryContext context;
-  context.bow = impl_->bow ? &*impl_->bow : nullptr;
-  context.clusters = &impl_->clusters;
-  context.among = among_ids != nullptr ? &among : nullptr;
-  // Removed keyframes (online mapping) are left out by a mask each stage
-  // tests: no per-query work for them.
-  if (impl_->num_removed > 0) {
-    context.excluded = &impl_->removed;
-    context.num_excluded = impl_->num_removed;
-  }
-  context.pool = impl_->pool.get();
-  context.image_dir = impl_->dir;
+  QueryContext context = impl_->Context(among_ids, &among);
   context.candidate_cost = &impl_->candidate_cost;
   context.clock = &clock;
   QueryResult r = QueryDatabase(impl_->db, features, options, context);
   r.times.extract_ms = extract_ms;
   r.times.total_ms += extract_ms;
   return r;
+}
+
+Shortlist PlaceDatabase::BowShortlist(const FeatureSet& features,
+                                      const std::vector<int32_t>* keyframe_ids,
+                                      const QueryOptions& options) const {
+  PLACEDB_CHECK_OPTIONS(options);
+  if (impl_->keyframe_table) {
+    PLACEDB_THROW_INVALID("the database at ", impl_->dir,
+                          " was opened as a keyframe table (`keyframe_table`): it cannot query");
+  }
+  if (!impl_->whole) {
+    PLACEDB_THROW_INVALID("a shortlist needs a session on the whole database (this one is on ",
+                          impl_->subset_description,
+                          "): pass the partition's keyframe ids instead");
+  }
+  const Timer clock;
+  std::shared_lock<FairSharedMutex> lock(impl_->state);
+  std::vector<uint32_t> among;
+  QueryContext context = impl_->Context(keyframe_ids, &among);
+  context.clock = &clock;
+  return ShortlistDatabase(impl_->db, features, options, context);
 }
 
 QueryResult PlaceDatabase::Query(const cv::Mat& image, const QueryOptions& options) const {

@@ -116,8 +116,8 @@ struct AddReport {
 
 // The keyframe ids of a database (placedb info).
 struct KeyframeIdSummary {
-  size_t count = 0;          // keyframes answering now
-  int32_t first = 0;         // the smallest and largest of their ids (0 when none)
+  size_t count = 0;   // keyframes answering now
+  int32_t first = 0;  // the smallest and largest of their ids (0 when none)
   int32_t last = 0;
   // The id AddFrames gives the next new frame by default: after the largest
   // id the database ever held (also removed keyframes'), so an id is never
@@ -228,6 +228,20 @@ class PlaceDatabase {
                          const QueryOptions& options = QueryOptions()) const;
   QueryResult QueryAmong(const FeatureSet& features, const std::vector<int32_t>& keyframe_ids,
                          const QueryOptions& options = QueryOptions()) const;
+
+  // A bag-of-words search split over partitions, exactly (query/result.h,
+  // MergeShortlists): every partition's process opens the whole database
+  // (mapped: its memory follows what its share reads) and sends
+  // BowShortlist(features, its keyframe ids, options); the voter merges
+  // them with MergeShortlists(parts, options); every partition then answers
+  // QueryAmong(features, the merged candidates of its share, the options
+  // with exhaustive retrieval and ForPartition()), and MergeQueryResults
+  // gives the whole database's bag-of-words answer. `keyframe_ids`:
+  // nullptr, every keyframe. InvalidArgument for other search methods, a
+  // database without a bag-of-words index, an unknown id, or a session
+  // opened on a subset or as a keyframe table.
+  Shortlist BowShortlist(const FeatureSet& features, const std::vector<int32_t>* keyframe_ids,
+                         const QueryOptions& options) const;
 
   // Why keyframe `keyframe_id` matched `features` (or did not): the match
   // and verify stages on it alone, every match kept (MatchKeyframe). For

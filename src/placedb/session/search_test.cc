@@ -199,6 +199,88 @@ TEST_F(SearchTest, SubsetsGetTheirOwnIndex) {
   for (const RankedKeyframe& k : r.ranked) EXPECT_GT(k.keyframe_id, 20);
 }
 
+// A bag-of-words search split over partitions in two rounds (shortlists,
+// MergeShortlists, each part's share of the candidates, MergeQueryResults)
+// answers exactly as the whole database, with and without the whole-image
+// channel; the one-round merge of partial bow answers does not always.
+TEST_F(SearchTest, PartitionedBowIsExactInTwoRounds) {
+  const PlaceDatabase db = PlaceDatabase::Open(Dir());
+  for (const PartitionScheme scheme :
+       {PartitionScheme::kContiguous, PartitionScheme::kInterleaved}) {
+    for (const int num_parts : {2, 4}) {
+      std::vector<std::vector<int32_t>> ids(static_cast<size_t>(num_parts));
+      const std::vector<int32_t> all = db.keyframe_ids();
+      for (size_t i = 0; i < all.size(); ++i) {
+        for (int p = 0; p < num_parts; ++p) {
+          if (InPartition(i, all.size(), p, num_parts, scheme)) ids[p].push_back(all[i]);
+        }
+      }
+      for (const bool whole_image : {false, true}) {
+        QueryOptions bow;
+        bow.retrieval.method = RetrievalMethod::kBow;
+        bow.retrieval.bow_candidates = 8;
+        bow.retrieval.guided_candidates = 3;
+        if (whole_image) {
+          bow.whole_image_weight = 5.0;
+          bow.whole_image_candidates = 2;
+        }
+        QueryOptions share = bow.ForPartition();
+        share.retrieval.method = RetrievalMethod::kExhaustive;
+        int one_round_differs = 0;
+        for (int id = 41; id <= 84; ++id) {
+          const FeatureSet& f = Features(id);
+          std::vector<Shortlist> lists;
+          for (const auto& part : ids) {
+            // Through JSON, as the wire carries it.
+            const nlohmann::json wire = db.BowShortlist(f, &part, bow);
+            lists.push_back(wire.get<Shortlist>());
+          }
+          const std::vector<ShortlistEntry> candidates = MergeShortlists(lists, bow);
+          std::vector<QueryResult> answers, one_round;
+          for (const auto& part : ids) {
+            std::vector<int32_t> mine;
+            for (const ShortlistEntry& c : candidates) {
+              if (std::count(part.begin(), part.end(), c.keyframe_id) > 0)
+                mine.push_back(c.keyframe_id);
+            }
+            answers.push_back(db.QueryAmong(f, mine, share));
+            one_round.push_back(db.QueryAmong(f, part, bow.ForPartition()));
+          }
+          const QueryResult expected = db.Query(f, bow);
+          const QueryResult merged = MergeQueryResults(answers, bow);
+          EXPECT_EQ(merged.ranked, expected.ranked)
+              << "query " << id << ", " << num_parts << " parts, whole image " << whole_image;
+          EXPECT_EQ(merged.matched, expected.matched);
+          EXPECT_EQ(merged.num_examined, expected.num_examined);
+          one_round_differs += !(MergeQueryResults(one_round, bow).ranked == expected.ranked);
+        }
+        if (num_parts == 4 && !whole_image) EXPECT_GT(one_round_differs, 0);
+      }
+    }
+  }
+  // Bad input: another search method, a keyframe two parts disagree on.
+  QueryOptions exhaustive;
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
+      [&] { db.BowShortlist(Features(50), nullptr, exhaustive); }, "not of exhaustive"));
+  QueryOptions bow;
+  bow.retrieval.method = RetrievalMethod::kBow;
+  Shortlist a = db.BowShortlist(Features(50), nullptr, bow), b = a;
+  ASSERT_FALSE(b.bow.empty());
+  b.bow[0].score += 1.0;
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
+      [&] {
+        MergeShortlists({a, b}, bow);
+      },
+      "in two bag-of-words shortlists"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
+      [] {
+        nlohmann::json::parse(R"({"bow": [[1, 2, 0.5]], "whole_image": [],
+            "deadline_reached": false, "retrieve_ms": 0})")
+            .get<Shortlist>();
+      },
+      "bow[0] is not [index, keyframe_id, score, guided]"));
+}
+
 // Cluster search (time clusters of 5): with the previous answer as prior it
 // keeps recall; without a prior it is a global search; a weak local answer
 // falls back, and the merged answer is then the whole database's.
