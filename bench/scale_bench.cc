@@ -56,6 +56,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <opencv2/core/utility.hpp>
@@ -103,6 +104,27 @@ struct Resident {
 Resident ResidentNow() { return {StatusMib("RssAnon"), StatusMib("RssFile")}; }
 nlohmann::json ResidentJson(const Resident& r) {
   return {{"private_mib", r.anon}, {"file_mib", r.file}};
+}
+
+// Resident MiB of each mapped file under `dir` (/proc/self/smaps; a file
+// mapped twice counts twice), by file name.
+std::map<std::string, double> MappedResidentMib(const fs::path& dir) {
+  std::map<std::string, double> out;
+  std::ifstream in("/proc/self/smaps");
+  std::string line, current;
+  const std::string prefix = fs::absolute(dir).lexically_normal().string() + "/";
+  while (std::getline(in, line)) {
+    const size_t slash = line.find('/');
+    if (!line.empty() && std::isxdigit(static_cast<unsigned char>(line[0])) &&
+        line.find('-') != std::string::npos) {
+      current = slash != std::string::npos && line.compare(slash, prefix.size(), prefix) == 0
+                    ? line.substr(slash + prefix.size())
+                    : "";
+    } else if (!current.empty() && line.rfind("Rss:", 0) == 0) {
+      out[current] += std::stod(line.substr(4)) / 1024.0;
+    }
+  }
+  return out;
 }
 
 // Drops every file of `dir` from the page cache (written back first), so
@@ -278,6 +300,46 @@ ModeRun RunMode(const placedb::PlaceDatabase& db, const std::vector<Query>& quer
   return run;
 }
 
+std::string ReadLine(FILE* in) {
+  std::string line;
+  for (int c = std::fgetc(in); c != EOF && c != '\n'; c = std::fgetc(in))
+    line.push_back(static_cast<char>(c));
+  return line;
+}
+
+// What `fn` returns, computed in a forked child process (its JSON through a
+// pipe); the child's error ends the run.
+nlohmann::json InChildProcess(const std::function<nlohmann::json()>& fn) {
+  std::fflush(stdout);
+  int up[2];
+  if (::pipe(up) != 0) PLACEDB_THROW_INVALID("pipe failed");
+  const pid_t pid = ::fork();
+  if (pid < 0) PLACEDB_THROW_INVALID("fork failed");
+  if (pid == 0) {
+    ::close(up[0]);
+    try {
+      const std::string text = fn().dump() + "\n";
+      FILE* out = ::fdopen(up[1], "w");
+      std::fputs(text.c_str(), out);
+      std::fclose(out);
+      std::fflush(stdout);
+      std::_Exit(0);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "scale_bench: child process: %s\n", e.what());
+      std::_Exit(1);
+    }
+  }
+  ::close(up[1]);
+  FILE* in = ::fdopen(up[0], "r");
+  const std::string line = ReadLine(in);
+  std::fclose(in);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  if (line.empty() || !WIFEXITED(status) || WEXITSTATUS(status) != 0)
+    PLACEDB_THROW_INVALID("a child process failed (see its error above)");
+  return nlohmann::json::parse(line);
+}
+
 // ---- The map split over partitions: worker processes and a voter --------------
 // Each worker is a process of its own (forked, so that it has the queries'
 // features; it opens the database itself, after the fork) that answers for
@@ -292,13 +354,6 @@ struct Worker {
   FILE* to = nullptr;
   FILE* from = nullptr;
 };
-
-std::string ReadLine(FILE* in) {
-  std::string line;
-  for (int c = std::fgetc(in); c != EOF && c != '\n'; c = std::fgetc(in))
-    line.push_back(static_cast<char>(c));
-  return line;
-}
 
 [[noreturn]] void PartitionWorker(FILE* in, FILE* out, const fs::path& dir,
                                   const placedb::OpenOptions& open_options, int part, int num_parts,
@@ -362,6 +417,9 @@ nlohmann::json RunPartitions(const placedb::PlaceDatabase& db, const fs::path& d
                              const std::vector<Query>& queries, int num_parts,
                              const placedb::QueryOptions& options) {
   std::fflush(stdout);
+  // A worker reads its share only: no prefetch of the whole files.
+  placedb::OpenOptions worker_options = open_options;
+  worker_options.prefetch = false;
   std::vector<Worker> workers;
   for (int p = 0; p < num_parts; ++p) {
     int down[2], up[2];
@@ -375,8 +433,8 @@ nlohmann::json RunPartitions(const placedb::PlaceDatabase& db, const fs::path& d
         std::fclose(w.to);
         std::fclose(w.from);
       }
-      PartitionWorker(::fdopen(down[0], "r"), ::fdopen(up[1], "w"), dir, open_options, p, num_parts,
-                      queries, options);
+      PartitionWorker(::fdopen(down[0], "r"), ::fdopen(up[1], "w"), dir, worker_options, p,
+                      num_parts, queries, options);
     }
     ::close(down[0]);
     ::close(up[1]);
@@ -480,6 +538,7 @@ int main(int argc, char** argv) {
   std::vector<int> compare_guided = {0, 10};
   double deadline_ms = 2.0, cluster_radius = 0.5, whole_image_weight = 50.0;
   int whole_image_candidates = 2, memory_queries = 10000, partitions = 4;
+  int resident_limit_mb = 768;
   std::string out = "out/bench/scale", json_path, data = PLACEDB_DATA_DIR;
   app.add_option("--sizes", sizes, "database sizes, keyframes")
       ->delimiter(',')
@@ -526,6 +585,11 @@ int main(int argc, char** argv) {
                  "at the largest size, bow over this many partition processes in two rounds, "
                  "answers compared with the whole map's (0: not)")
       ->check(CLI::Range(0, 64))
+      ->capture_default_str();
+  app.add_option("--resident-limit-mb", resident_limit_mb,
+                 "the memory run is made without a resident limit and again with this "
+                 "OpenOptions::resident_limit_mb (0: only without)")
+      ->check(CLI::Range(0, 1048576))
       ->capture_default_str();
   app.add_option("--cluster-radius", cluster_radius,
                  "cluster radius, metres (views of one "
@@ -575,6 +639,7 @@ int main(int argc, char** argv) {
                               {"bow_candidates", bow_candidates},
                               {"guided_candidates", guided_candidates},
                               {"cluster_radius_m", cluster_radius},
+                              {"resident_limit_mb", resident_limit_mb},
                               {"keyframe_augment", placedb::AugmentOptionsToJson(keyframe_aug)},
                               {"query_augment", placedb::AugmentOptionsToJson(query_aug)},
                               {"sizes", nlohmann::json::array()}};
@@ -689,53 +754,74 @@ int main(int argc, char** argv) {
       // At the largest size: a session of its own (opened now: the runs
       // above read every page of the first one), bow queries on fresh views
       // spread over the database, and the memory that session added.
-      nlohmann::json memory_run;
+      nlohmann::json memory_runs = nlohmann::json::array();
       if (memory_queries > 0 && n == *std::max_element(sizes.begin(), sizes.end()) &&
           std::find(modes.begin(), modes.end(), "bow") != modes.end()) {
-        const Resident before_session = ResidentNow();
-        const placedb::PlaceDatabase session =
-            placedb::PlaceDatabase::Open(dir.string(), open_options);
-        placedb::QueryOptions options;
-        options.retrieval.method = placedb::RetrievalMethod::kBow;
-        options.retrieval.bow_candidates = bow_candidates;
-        options.retrieval.guided_candidates = guided_candidates;
-        placedb::AugmentOptions more = query_aug;
-        more.seed = kQuerySeed + 1;
-        std::vector<double> ms;
-        int correct = 0;
-        double extract_s = 0.0;
-        for (int i = 0; i < memory_queries; ++i) {
-          const int truth = static_cast<int>(1 + (2 * static_cast<size_t>(i) + 1) * n /
-                                                     (2 * static_cast<size_t>(memory_queries)));
-          placedb::Timer te;
-          const placedb::FeatureSet f = session.Extract(
-              placedb::Augment(placedb::LoadFrameImage(frames[truth - 1]), i + 1, more));
-          extract_s += te.ElapsedSeconds();
-          placedb::Timer t;
-          const placedb::QueryResult r = session.Query(f, options);
-          ms.push_back(t.ElapsedMs());
-          correct += !r.ranked.empty() && r.ranked.front().keyframe_id == truth;
-          if ((i + 1) % 1000 == 0) {
-            const Resident now = ResidentNow();
+        // In a process of its own (forked: it starts with none of this
+        // process's mapped pages resident), as a robot's would be: the
+        // sessions' resident limit is the process's.
+        std::vector<int> limits = {0};
+        if (resident_limit_mb > 0) limits.push_back(resident_limit_mb);
+        for (const int limit : limits)
+          memory_runs.push_back(InChildProcess([&] {
+            placedb::OpenOptions limited = open_options;
+            limited.resident_limit_mb = limit;
+            const Resident before_session = ResidentNow();
+            const placedb::PlaceDatabase session =
+                placedb::PlaceDatabase::Open(dir.string(), limited);
+            placedb::QueryOptions options;
+            options.retrieval.method = placedb::RetrievalMethod::kBow;
+            options.retrieval.bow_candidates = bow_candidates;
+            options.retrieval.guided_candidates = guided_candidates;
+            placedb::AugmentOptions more = query_aug;
+            more.seed = kQuerySeed + 1;
+            std::vector<double> ms;
+            int correct = 0;
+            double extract_s = 0.0;
+            for (int i = 0; i < memory_queries; ++i) {
+              const int truth = static_cast<int>(1 + (2 * static_cast<size_t>(i) + 1) * n /
+                                                         (2 * static_cast<size_t>(memory_queries)));
+              placedb::Timer te;
+              const placedb::FeatureSet f = session.Extract(
+                  placedb::Augment(placedb::LoadFrameImage(frames[truth - 1]), i + 1, more));
+              extract_s += te.ElapsedSeconds();
+              placedb::Timer t;
+              const placedb::QueryResult r = session.Query(f, options);
+              ms.push_back(t.ElapsedMs());
+              correct += !r.ranked.empty() && r.ranked.front().keyframe_id == truth;
+              if ((i + 1) % 1000 == 0) {
+                const Resident now = ResidentNow();
+                fmt::print(
+                    "  memory run: {} bow queries, resident private {:.0f} MiB, file {:.0f} MiB\n",
+                    i + 1, now.anon - before_session.anon, now.file - before_session.file);
+              }
+            }
+            const Resident after = ResidentNow();
+            nlohmann::json by_file = nlohmann::json::object();
+            for (const auto& [name, mib] : MappedResidentMib(dir)) {
+              by_file[name] = mib;
+              fmt::print("  memory run: {} resident {:.0f} MiB\n", name, mib);
+            }
+            const LatencyStats s = placedb::ComputeLatencyStats(ms);
             fmt::print(
-                "  memory run: {} bow queries, resident private {:.0f} MiB, file {:.0f} MiB\n",
-                i + 1, now.anon - before_session.anon, now.file - before_session.file);
-          }
-        }
-        const Resident after = ResidentNow();
-        const LatencyStats s = placedb::ComputeLatencyStats(ms);
-        memory_run = {{"queries", memory_queries},
-                      {"resident_increase", ResidentJson({after.anon - before_session.anon,
-                                                          after.file - before_session.file})},
-                      {"latency_ms", StatsJson(s)},
-                      {"recall_at_1", static_cast<double>(correct) / memory_queries},
-                      {"extract_seconds", extract_s}};
-        fmt::print(
-            "  a new session, {} bow queries: resident +{:.0f} MiB private, +{:.0f} MiB "
-            "file-backed "
-            "over the process before its open; p50 {:.2f} ms p99 {:.2f} ms recall@1 {:.3f}\n",
-            memory_queries, after.anon - before_session.anon, after.file - before_session.file,
-            s.p50, s.p99, static_cast<double>(correct) / memory_queries);
+                "  a new process and session (resident limit {} MiB), {} bow queries: resident "
+                "+{:.0f} MiB private, +{:.0f} "
+                "MiB file-backed over the process before its open (the process: {:.0f} + {:.0f} "
+                "MiB); p50 {:.2f} ms p99 {:.2f} ms recall@1 {:.3f}\n",
+                limit, memory_queries, after.anon - before_session.anon,
+                after.file - before_session.file, after.anon, after.file, s.p50, s.p99,
+                static_cast<double>(correct) / memory_queries);
+            return nlohmann::json{
+                {"queries", memory_queries},
+                {"resident_limit_mb", limit},
+                {"resident_increase", ResidentJson({after.anon - before_session.anon,
+                                                    after.file - before_session.file})},
+                {"latency_ms", StatsJson(s)},
+                {"resident_by_file_mib", by_file},
+                {"process_resident", ResidentJson(after)},
+                {"recall_at_1", static_cast<double>(correct) / memory_queries},
+                {"extract_seconds", extract_s}};
+          }));
       }
       // The map split over partition processes (bow, the default options).
       nlohmann::json partition_run;
@@ -794,7 +880,7 @@ int main(int argc, char** argv) {
           {"verify_ms", verify_ms},
           {"popcount_limit_ms", limit_ms},
           {"modes", nlohmann::json::array()}};
-      if (!memory_run.is_null()) size["memory_run"] = memory_run;
+      if (!memory_runs.empty()) size["memory_runs"] = memory_runs;
       if (!partition_run.is_null()) size["partition_run"] = partition_run;
       fmt::print(
           "{} keyframes, {} features: build {:.0f} s{}, database {:.1f} MB, open {:.1f} ms ({} "

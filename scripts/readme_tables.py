@@ -161,7 +161,7 @@ def scale_table(j):
              "resident after open MiB: private + file-backed | after the runs (queries) | "
              "verify s | popcount limit ms |",
              "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
-    memory_runs = []
+    memory_runs, partition_runs = [], []
     for s in j["sizes"]:
         cold = s.get("first_open_cold", False)
         first = f" ({s['first_open_ms']:.1f}{'' if cold else ', first'})" if "first_open_ms" in s else ""
@@ -175,15 +175,35 @@ def scale_table(j):
         rows.append(f"| {s['keyframes']} | {s['features']} ({s['features_per_keyframe']:.0f}) | "
                     f"{s['build_seconds']:.0f} | {s['database_bytes'] / 1e6:.1f} | {s['open_ms']:.1f}{first} | "
                     f"{after_open} | {after_runs} | {verify} | {s['popcount_limit_ms']:.2f} |")
-        if "memory_run" in s:
-            memory_runs.append((s["keyframes"], s["memory_run"]))
+        for m in s.get("memory_runs", []):
+            memory_runs.append((s["keyframes"], m))
+        if "partition_run" in s:
+            partition_runs.append((s["keyframes"], s["partition_run"]))
     for keyframes, m in memory_runs:
         r = m["resident_increase"]
-        rows += ["", f"At {keyframes} keyframes, a session of its own opened and asked {m['queries']} bag-of-words "
-                 f"queries (fresh views spread over the map): it added **{r['private_mib']:.0f} MiB private + "
-                 f"{r['file_mib']:.0f} MiB file-backed** resident memory to the process; their latency p50 "
-                 f"{m['latency_ms']['p50']:.2f} ms, p99 {m['latency_ms']['p99']:.2f} ms, recall@1 "
-                 f"{m['recall_at_1']:.3f}."]
+        limit = m.get("resident_limit_mb", 0)
+        limit_text = (f"with `resident_limit_mb` {limit}" if limit > 0
+                      else "without a resident limit, the default")
+        by_file = m.get("resident_by_file_mib", {})
+        files = ", ".join(f"{name.split('.')[0]} {mib:.0f}" for name, mib in sorted(by_file.items()))
+        rows += ["", f"At {keyframes} keyframes, a process of its own opened a session ({limit_text}) and asked "
+                 f"{m['queries']} bag-of-words queries (fresh views spread over the map): the session added "
+                 f"**{r['private_mib']:.0f} MiB private + {r['file_mib']:.0f} MiB file-backed** resident memory"
+                 + (f" (mapped and resident at the end, MiB: {files})" if files else "") +
+                 f"; their latency p50 {m['latency_ms']['p50']:.2f} ms, p99 {m['latency_ms']['p99']:.2f} ms, "
+                 f"recall@1 {m['recall_at_1']:.3f}."]
+    for keyframes, p in partition_runs:
+        w = p["workers"]
+        files = max(x["file_mib"] for x in w)
+        private = max(x["private_mib"] for x in w)
+        rows += ["", "| keyframes | partitions (processes) | queries | answers equal to the whole map's | "
+                 "p50 ms at the voter | p99 ms | recall@1 (whole map) | keyframes examined | "
+                 "each worker: open ms, resident after the queries MiB (private + file-backed, the largest) |",
+                 "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+                 f"| {keyframes} | {p['partitions']} | {p['queries']} | **{p['same_answers']} of {p['queries']}** | "
+                 f"{p['latency_ms']['p50']:.2f} | {p['latency_ms']['p99']:.2f} | {p['recall_at_1']:.3f} "
+                 f"({p['whole_recall_at_1']:.3f}) | {p['examined_mean']:.1f} | "
+                 f"{max(x['open_ms'] for x in w):.1f}, {private:.0f} + {files:.0f} |"]
     note = (f"{j['sample_images']} sample images augmented; at most {j['features_per_frame']} ORB features per "
             f"frame (FAST threshold {j['fast_threshold']}); {j['cpus']} CPUs; queries on one thread, feature "
             f"extraction excluded; bow scores {j['bow_candidates']} candidates by bag of words and matches the "

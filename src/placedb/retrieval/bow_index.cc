@@ -484,9 +484,17 @@ BowIndex BowIndex::Open(const std::string& path, std::shared_ptr<const Vocabular
   return FromMapped(MappedFile::Open(path), path, std::move(vocabulary), db);
 }
 
+std::pair<uint64_t, uint64_t> BowIndex::PostingsExtent() const {
+  if (postings_ == nullptr || image_.data == nullptr) return {0, 0};
+  return {static_cast<uint64_t>(reinterpret_cast<const char*>(postings_) - image_.data),
+          word_offsets_[vocabulary_->num_words()] * sizeof(Posting)};
+}
+
 BowIndex BowIndex::FromMapped(std::shared_ptr<const MappedFile> file, const std::string& shown,
                               std::shared_ptr<const Vocabulary> vocabulary, const Database& db) {
-  return FromImage(flat_file::MapImage(std::move(file)), shown, std::move(vocabulary), db);
+  BowIndex index = FromImage(flat_file::MapImage(file), shown, std::move(vocabulary), db);
+  index.mapping_ = std::move(file);
+  return index;
 }
 
 BowIndex BowIndex::FromImage(flat_file::Image image, const std::string& shown,

@@ -49,6 +49,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "placedb/retrieval/options.h"
@@ -145,6 +146,13 @@ class BowIndex {
   uint64_t checksum() const { return checksum_; }
   // The file's format version.
   uint32_t format_version() const { return format_version_; }
+  // The index file used in place (nullptr: built in memory); for
+  // prefetching and releasing its pages (util/mapped_file.h).
+  const std::shared_ptr<const MappedFile>& mapped_file() const { return mapping_; }
+  // Where the posting lists lie in it: {offset, bytes}. Every query reads
+  // some of them, all over the section (the rest of the file is read per
+  // candidate keyframe).
+  std::pair<uint64_t, uint64_t> PostingsExtent() const;
   // Checks everything not yet checked (see "Integrity" above): the payload
   // checksum, every keyframe's and word's block, and the transposition.
   // CorruptDatabase naming the file; nothing to do for a version 1 file.
@@ -218,6 +226,7 @@ class BowIndex {
   const uint64_t* word_sums_ = nullptr;
 
   flat_file::Image image_;
+  std::shared_ptr<const MappedFile> mapping_;
   std::shared_ptr<const Vocabulary> vocabulary_;
   uint32_t num_keyframes_ = 0;
   int direct_level_ = 0;

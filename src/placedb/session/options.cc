@@ -46,8 +46,7 @@ void SetPartition(OpenOptions& o, const OptionValue& v) {
     }
     if (n.size() != 2 || n[0] != std::floor(n[0]) || n[1] != std::floor(n[1]) || !(n[1] >= 1) ||
         !(n[1] <= 4096) || !(n[0] >= 0) || !(n[0] < n[1])) {
-      PLACEDB_THROW_INVALID(
-          "`partition` takes (I, N): N in [1, 4096], I in [0, N), whole numbers");
+      PLACEDB_THROW_INVALID("`partition` takes (I, N): N in [1, 4096], I in [0, N), whole numbers");
     }
     part = static_cast<int64_t>(n[0]);
     parts = static_cast<int64_t>(n[1]);
@@ -55,8 +54,8 @@ void SetPartition(OpenOptions& o, const OptionValue& v) {
   if (o.subset.kind == KeyframeSubset::Kind::kIds) {
     PLACEDB_THROW_INVALID("give `partition` or `keyframes`, not both");
   }
-  o.subset = KeyframeSubset::Partition(static_cast<int>(part), static_cast<int>(parts),
-                                       o.subset.scheme);
+  o.subset =
+      KeyframeSubset::Partition(static_cast<int>(part), static_cast<int>(parts), o.subset.scheme);
 }
 
 void SetKeyframes(OpenOptions& o, const OptionValue& v) {
@@ -170,6 +169,14 @@ const OptionTable<OpenOptions>& OpenOptions::Table() {
     t.Bool("keyframe_table", PLACEDB_MEMBER(O, keyframe_table),
            "open only the keyframe table (ids, poses, sources): no queries, no changes",
            BoolFlag::kSwitch, kPython);
+    t.Bool("prefetch", PLACEDB_MEMBER(O, prefetch),
+           "read the database files into the page cache in the background after the open",
+           BoolFlag::kNegatable, kCallers);
+    t.Number("resident_limit_mb", PLACEDB_MEMBER(O, resident_limit_mb),
+             OptionRange::Closed(0, 1048576),
+             "above this file-backed resident memory (MiB) after a query, let go of the "
+             "database files' resident pages (0: never)",
+             kCallers);
     return t;
   }();
   return table;

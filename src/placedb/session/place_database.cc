@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <chrono>
 #include <filesystem>
 #include <mutex>
@@ -21,6 +22,7 @@
 #include "placedb/util/fair_shared_mutex.h"
 #include "placedb/util/file_io.h"
 #include "placedb/util/json_reader.h"
+#include "placedb/util/mapped_file.h"
 #include "placedb/util/options.h"
 #include "placedb/util/progress.h"
 #include "placedb/util/thread_pool.h"
@@ -76,7 +78,69 @@ struct PlaceDatabase::Impl {
   // for an id not in the database), removed keyframes left out by a mask each
   // stage tests (no per-query work for them), the pool, the indexes.
   QueryContext Context(const std::vector<int32_t>* ids, std::vector<uint32_t>* among) const;
+
+  // The files read into the page cache after the open (OpenOptions::prefetch),
+  // by `prefetcher` until done or `stop_prefetch`.
+  std::thread prefetcher;
+  std::atomic<bool> stop_prefetch{false};
+  void StartPrefetch();
+  // OpenOptions::resident_limit_mb, after each query (under `state`): while
+  // the process's file-backed resident memory is above the limit, the
+  // query lets go of the next slice of the database files (a cursor going
+  // round the index file, then the keyframe file), at most kMaxSlices a
+  // query: no query pays for releasing everything at once.
+  mutable std::atomic<uint64_t> release_cursor{0};
+  mutable std::atomic<uint64_t> released_slices{0};
+  void KeepResidentUnderLimit() const;
 };
+
+void PlaceDatabase::Impl::StartPrefetch() {
+  std::vector<std::shared_ptr<const MappedFile>> files;
+  // The index first: every query reads postings all over it.
+  if (bow && bow->base().mapped_file()) files.push_back(bow->base().mapped_file());
+  if (db.mapped_file()) files.push_back(db.mapped_file());
+  if (files.empty()) return;
+  prefetcher = std::thread([files = std::move(files), this] {
+    for (const auto& f : files) f->Prefetch(stop_prefetch);
+  });
+}
+
+void PlaceDatabase::Impl::KeepResidentUnderLimit() const {
+  if (open.resident_limit_mb <= 0) return;
+  constexpr uint64_t kSlice = uint64_t{8} << 20;
+  constexpr int kMaxSlices = 8;
+  const uint64_t limit = static_cast<uint64_t>(open.resident_limit_mb) << 20;
+  // What may be let go: the keyframe file, and the index file but for its
+  // posting lists (every query reads some of them, all over the section).
+  struct Region {
+    const MappedFile* file;
+    uint64_t offset, bytes;
+  };
+  std::vector<Region> regions;
+  if (const MappedFile* f = db.mapped_file().get()) regions.push_back({f, 0, f->size()});
+  if (bow && bow->base().mapped_file()) {
+    const MappedFile* f = bow->base().mapped_file().get();
+    const auto [at, bytes] = bow->base().PostingsExtent();
+    if (at + bytes <= f->size()) {
+      regions.push_back({f, 0, at});
+      regions.push_back({f, at + bytes, f->size() - at - bytes});
+    }
+  }
+  uint64_t total = 0;
+  for (const Region& r : regions) total += r.bytes;
+  if (total == 0) return;
+  for (int i = 0; i < kMaxSlices && ProcessFileBackedResidentBytes() > limit; ++i) {
+    uint64_t at = release_cursor.fetch_add(kSlice, std::memory_order_relaxed) % total;
+    for (const Region& r : regions) {
+      if (at < r.bytes) {
+        r.file->ReleaseResidentPages(r.offset + at, std::min(kSlice, r.bytes - at));
+        break;
+      }
+      at -= r.bytes;
+    }
+    released_slices.fetch_add(1, std::memory_order_relaxed);
+  }
+}
 
 QueryContext PlaceDatabase::Impl::Context(const std::vector<int32_t>* ids,
                                           std::vector<uint32_t>* among) const {
@@ -105,6 +169,8 @@ QueryContext PlaceDatabase::Impl::Context(const std::vector<int32_t>* ids,
 }
 
 PlaceDatabase::Impl::~Impl() {
+  stop_prefetch = true;
+  if (prefetcher.joinable()) prefetcher.join();
   std::error_code ignore;
   for (const std::string& name : unsaved_images) fs::remove(fs::path(dir) / name, ignore);
 }
@@ -324,6 +390,7 @@ PlaceDatabase PlaceDatabase::Open(const std::string& dir, const OpenOptions& opt
       SweepDebris(dir, db);
     }
   }
+  if (options.prefetch && impl->whole) impl->StartPrefetch();
   return PlaceDatabase(std::move(impl));
 }
 
@@ -507,6 +574,7 @@ QueryResult PlaceDatabase::Run(const FeatureSet& features, const std::vector<int
   context.candidate_cost = &impl_->candidate_cost;
   context.clock = &clock;
   QueryResult r = QueryDatabase(impl_->db, features, options, context);
+  impl_->KeepResidentUnderLimit();
   r.times.extract_ms = extract_ms;
   r.times.total_ms += extract_ms;
   return r;
@@ -530,7 +598,9 @@ Shortlist PlaceDatabase::BowShortlist(const FeatureSet& features,
   std::vector<uint32_t> among;
   QueryContext context = impl_->Context(keyframe_ids, &among);
   context.clock = &clock;
-  return ShortlistDatabase(impl_->db, features, options, context);
+  Shortlist shortlist = ShortlistDatabase(impl_->db, features, options, context);
+  impl_->KeepResidentUnderLimit();
+  return shortlist;
 }
 
 QueryResult PlaceDatabase::Query(const cv::Mat& image, const QueryOptions& options) const {

@@ -64,6 +64,26 @@ struct OpenOptions {
   // poses of answers; the extractor node, which needs only the settings).
   // Default false.
   bool keyframe_table = false;
+  // After the open, a background thread asks the kernel to read the
+  // database's index and keyframe files into its page cache (madvise
+  // MADV_WILLNEED), so that the first queries do not wait for the disk; the
+  // open itself does not wait, and the process's resident memory does not
+  // grow by it (the page cache is the kernel's, given back under memory
+  // pressure). Only for a session on the whole database. Default true.
+  bool prefetch = true;
+  // While, after a query, this process's file-backed resident memory (the
+  // pages of mapped files it has touched) is above this many MiB, the query
+  // lets go of the next 8 MiB slice of the database's files (a cursor going
+  // round them; at most 8 slices a query, so no query pays for releasing
+  // everything at once): madvise MADV_DONTNEED, the pages stay in the page
+  // cache and the next read maps them again at the cost of a minor page
+  // fault. So the resident memory follows recent use, not everything ever
+  // read, at a cost per query (minor faults where pages were let go; README,
+  // "Retrieval at scale", measures it). The measure is the process's
+  // (/proc/self/statm): other mapped files count too. Range [0, 1048576];
+  // 0 (default): no limit, every page read stays mapped until the session
+  // closes (clean pages the kernel may still reclaim under pressure).
+  int resident_limit_mb = 0;
 
   // The options' names, defaults, ranges and help (util/option_table.h).
   static const OptionTable<OpenOptions>& Table();

@@ -144,6 +144,10 @@ class Database {
   // The version of the keyframe file this database was read from (0: never
   // read from a file).
   uint32_t file_format_version() const { return file_format_version_; }
+  // The keyframe file the features are used from in place (nullptr: built
+  // or grown in memory); for prefetching and releasing its pages
+  // (util/mapped_file.h).
+  const std::shared_ptr<const MappedFile>& mapped_file() const { return mapping_; }
   size_t FeatureCount(size_t index) const { return feature_count_[index]; }
 
   // The whole-image channel (feature/whole_image.h): one row of

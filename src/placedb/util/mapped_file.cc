@@ -5,7 +5,9 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
 
 #include "placedb/util/check.h"
@@ -39,6 +41,38 @@ std::shared_ptr<const MappedFile> MappedFile::FromFd(int fd, const std::string& 
     file->mapped_ = true;
   }
   return file;  // the mapping keeps the file's pages when fd is closed
+}
+
+void MappedFile::Prefetch(const std::atomic<bool>& stop) const {
+  if (!mapped_) return;
+  constexpr size_t kChunk = size_t{16} << 20;
+  for (size_t at = 0; at < size_ && !stop.load(std::memory_order_relaxed); at += kChunk) {
+    // Advice only: an error (memory pressure) leaves the reads to the queries.
+    ::madvise(const_cast<char*>(data_) + at, std::min(kChunk, size_ - at), MADV_WILLNEED);
+  }
+}
+
+void MappedFile::ReleaseResidentPages(size_t offset, size_t length) const {
+  if (!mapped_ || offset >= size_) return;
+  const size_t end = offset + std::min(length, size_ - offset);
+  const size_t page = static_cast<size_t>(::sysconf(_SC_PAGESIZE));
+  const size_t first = offset / page * page;  // the mapping starts on a page
+  ::madvise(const_cast<char*>(data_) + first, end - first, MADV_DONTNEED);
+}
+
+uint64_t ProcessFileBackedResidentBytes() {
+  const int fd = ::open("/proc/self/statm", O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return 0;
+  char text[256];
+  const ssize_t n = ::read(fd, text, sizeof(text) - 1);
+  ::close(fd);
+  if (n <= 0) return 0;
+  text[n] = '\0';
+  // size resident shared text lib data dt, in pages; "shared" is the
+  // file-backed (and shared memory) part of the resident set.
+  unsigned long long size = 0, resident = 0, shared = 0;
+  if (std::sscanf(text, "%llu %llu %llu", &size, &resident, &shared) != 3) return 0;
+  return static_cast<uint64_t>(shared) * static_cast<uint64_t>(::sysconf(_SC_PAGESIZE));
 }
 
 MappedFile::~MappedFile() {

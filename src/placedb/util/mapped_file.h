@@ -2,7 +2,9 @@
 // in place, without reading and copying them.
 #pragma once
 
+#include <atomic>
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <string>
 
@@ -25,11 +27,33 @@ class MappedFile {
   const char* data() const { return data_; }
   size_t size() const { return size_; }
 
+  // Asks the kernel to read the file into its page cache (madvise
+  // MADV_WILLNEED, 16 MiB at a time, the calling thread waiting for each
+  // request to be queued) until it is all asked for or `stop` is set: later
+  // reads of the mapping find their pages in memory instead of waiting for
+  // the disk. Maps nothing into the process (its resident memory is
+  // unchanged); the page cache is the kernel's, shared, and given back under
+  // memory pressure.
+  void Prefetch(const std::atomic<bool>& stop) const;
+  // Lets go of the pages of the mapping that are resident in this process
+  // (madvise MADV_DONTNEED): the process's resident memory drops; the pages
+  // stay in the page cache while the kernel keeps them, and the next read
+  // maps them again (a minor fault) or reads them from the file. Safe while
+  // other threads read the mapping: it is read-only, nothing is lost.
+  void ReleaseResidentPages() const { ReleaseResidentPages(0, size_); }
+  // The same for the pages of bytes [offset, offset + length) (clipped to
+  // the file; pages partly inside count).
+  void ReleaseResidentPages(size_t offset, size_t length) const;
+
  private:
   MappedFile() = default;
   const char* data_ = nullptr;
   size_t size_ = 0;
   bool mapped_ = false;
 };
+
+// This process's file-backed resident memory (mapped files; shared memory
+// counts too), bytes, from /proc/self/statm; 0 when it cannot be read.
+uint64_t ProcessFileBackedResidentBytes();
 
 }  // namespace placedb

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cstring>
 
 #include "placedb/util/file_io.h"
@@ -31,6 +32,30 @@ TEST(MappedFileTest, EmptyAndMissingFiles) {
                                                  "missing"));
   EXPECT_TRUE(testing_util::ThrowsWith<InvalidArgument>([&] { MappedFile::Open(tmp.Path("")); },
                                                         "not a regular file"));
+}
+
+// Released pages leave the process's resident set and read back the same;
+// a prefetch changes nothing a reader sees.
+TEST(MappedFileTest, ReleasedPagesLeaveTheResidentSetAndReadBackTheSame) {
+  testing_util::TempDir tmp;
+  const std::string path = tmp.Path("f.bin");
+  std::string content(size_t{32} << 20, '\0');
+  for (size_t i = 0; i < content.size(); ++i) content[i] = static_cast<char>(i * 7 + (i >> 12));
+  WriteFileAtomic(path, content);
+  const auto mapped = MappedFile::Open(path);
+  std::atomic<bool> stop{false};
+  mapped->Prefetch(stop);
+  const uint64_t before = ProcessFileBackedResidentBytes();
+  ASSERT_GT(before, 0u);
+  EXPECT_EQ(std::memcmp(mapped->data(), content.data(), content.size()), 0);
+  const uint64_t touched = ProcessFileBackedResidentBytes();
+  EXPECT_GE(touched, before + (size_t{16} << 20));
+  mapped->ReleaseResidentPages();
+  EXPECT_LE(ProcessFileBackedResidentBytes() + (size_t{16} << 20), touched);
+  EXPECT_EQ(std::memcmp(mapped->data(), content.data(), content.size()), 0);
+  stop = true;
+  mapped->Prefetch(stop);  // returns at once
+  MappedFile::Open(tmp.Path("f.bin"))->ReleaseResidentPages();
 }
 
 }  // namespace
