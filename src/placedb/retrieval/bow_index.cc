@@ -697,12 +697,21 @@ std::vector<BowIndex::Scored> BowIndex::Query(const BowVector& query, size_t max
     scratch.allowed.resize(num_keyframes_, 0);
     scratch.touched.resize(num_keyframes_ + 1);
   }
-  const ScratchReset reset(&scratch, among);
+  // A contiguous `among` (a partition of contiguous ranges) is walked as a
+  // range: each posting list (sorted by keyframe) from the range's first
+  // keyframe to its end, so that a partition reads its share of the
+  // postings, not all of them. The scores are the same.
+  const bool range =
+      among != nullptr && !among->empty() && among->back() - among->front() + 1 == among->size();
+  const uint32_t range_first = range ? among->front() : 0;
+  const uint32_t range_end = range ? among->back() + 1 : num_keyframes_;
+  const std::vector<uint32_t>* masked = range ? nullptr : among;
+  const ScratchReset reset(&scratch, masked);
   // A keyframe's terms are multiplied by mask[k] ^ invert: the among mask
   // (with the excluded ones cleared), or the excluded mask inverted.
   const uint8_t* mask = nullptr;
   uint8_t invert = 0;
-  if (among != nullptr) {
+  if (masked != nullptr) {
     if (excluded != nullptr) {
       for (const uint32_t k : *among) scratch.allowed[k] = static_cast<uint8_t>(!excluded[k]);
     } else {
@@ -752,6 +761,11 @@ std::vector<BowIndex::Scored> BowIndex::Query(const BowVector& query, size_t max
       if (!(q > 0.0f)) continue;
       const Posting* p = postings_ + word_offsets_[query.words[i]];
       const Posting* end = postings_ + word_offsets_[query.words[i] + 1];
+      if (range) {
+        const auto before_first = [](const Posting& x, uint32_t k) { return x.keyframe < k; };
+        p = std::lower_bound(p, end, range_first, before_first);
+        end = std::lower_bound(p, end, range_end, before_first);
+      }
       postings_done += static_cast<size_t>(end - p);
       for (; p != end; ++p) {
         const uint32_t k = p->keyframe;
