@@ -246,6 +246,20 @@ std::string RankedKeyframeToJson(const RankedKeyframe& keyframe, int indent) {
   return DumpJson(nlohmann::json(keyframe), indent);
 }
 
+std::string ShortlistToJson(const Shortlist& shortlist, int indent) {
+  return DumpJson(nlohmann::json(shortlist), indent);
+}
+
+Shortlist ShortlistFromJson(const std::string& json) {
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(json);
+  } catch (const nlohmann::json::exception& e) {
+    PLACEDB_THROW_INVALID("a shortlist that is not JSON: ", e.what());
+  }
+  return j.get<Shortlist>();
+}
+
 QueryResult QueryResultFromJson(const std::string& json) {
   nlohmann::json j;
   try {

@@ -228,5 +228,10 @@ std::string QueryResultToJson(const QueryResult& result, int indent = -1);
 QueryResult QueryResultFromJson(const std::string& json);
 // One ranked keyframe's JSON, as it appears in the answer's.
 std::string RankedKeyframeToJson(const RankedKeyframe& keyframe, int indent = -1);
+// A shortlist's JSON ({"bow": [[index, keyframe_id, score, guided], ...],
+// "whole_image": [...], "deadline_reached", "retrieve_ms"}), and back, every
+// field validated, as for answers.
+std::string ShortlistToJson(const Shortlist& shortlist, int indent = -1);
+Shortlist ShortlistFromJson(const std::string& json);
 
 }  // namespace placedb

@@ -232,8 +232,7 @@ TEST_F(SearchTest, PartitionedBowIsExactInTwoRounds) {
           std::vector<Shortlist> lists;
           for (const auto& part : ids) {
             // Through JSON, as the wire carries it.
-            const nlohmann::json wire = db.BowShortlist(f, &part, bow);
-            lists.push_back(wire.get<Shortlist>());
+            lists.push_back(ShortlistFromJson(ShortlistToJson(db.BowShortlist(f, &part, bow))));
           }
           const std::vector<ShortlistEntry> candidates = MergeShortlists(lists, bow);
           std::vector<QueryResult> answers, one_round;
