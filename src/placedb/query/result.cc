@@ -250,24 +250,28 @@ std::string ShortlistToJson(const Shortlist& shortlist, int indent) {
   return DumpJson(nlohmann::json(shortlist), indent);
 }
 
-Shortlist ShortlistFromJson(const std::string& json) {
+namespace {
+
+// `json` parsed as a T (`what` names it in the error for text that is not JSON).
+template <typename T>
+T ParseJsonText(const std::string& json, const char* what) {
   nlohmann::json j;
   try {
     j = nlohmann::json::parse(json);
   } catch (const nlohmann::json::exception& e) {
-    PLACEDB_THROW_INVALID("a shortlist that is not JSON: ", e.what());
+    PLACEDB_THROW_INVALID("a ", what, " that is not JSON: ", e.what());
   }
-  return j.get<Shortlist>();
+  return j.get<T>();
+}
+
+}  // namespace
+
+Shortlist ShortlistFromJson(const std::string& json) {
+  return ParseJsonText<Shortlist>(json, "shortlist");
 }
 
 QueryResult QueryResultFromJson(const std::string& json) {
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(json);
-  } catch (const nlohmann::json::exception& e) {
-    PLACEDB_THROW_INVALID("a query result that is not JSON: ", e.what());
-  }
-  return j.get<QueryResult>();
+  return ParseJsonText<QueryResult>(json, "query result");
 }
 
 }  // namespace placedb
