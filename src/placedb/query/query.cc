@@ -655,7 +655,7 @@ Shortlist ShortlistDatabase(const Database& db, const FeatureSet& query,
   Shortlist out;
   const std::vector<BowCandidate> scored =
       ScoreBowCandidates(*context.bow, db, query, options.retrieval, options.match, restriction,
-                         excluded, deadline, &out.deadline_reached);
+                         excluded, deadline, &out.deadline_reached, /*count_always=*/true);
   for (const BowCandidate& c : scored)
     out.bow.push_back({c.index, db.keyframe(c.index).id, c.score, c.guided});
   const WholeImageScores whole = ScoreWholeImages(db, query, options, false);

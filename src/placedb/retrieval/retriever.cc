@@ -82,7 +82,7 @@ class BowRetriever : public Retriever {
 std::vector<BowCandidate> ScoreBowCandidates(
     const GrowingBowIndex& index, const Database& db, const FeatureSet& query,
     const RetrievalOptions& options, const MatchOptions& match, const std::vector<uint32_t>* among,
-    const uint8_t* excluded, const Deadline& deadline, bool* stopped) {
+    const uint8_t* excluded, const Deadline& deadline, bool* stopped, bool count_always) {
   if (stopped != nullptr) *stopped = false;
   if (index.size() != db.size()) {
     PLACEDB_THROW_INVALID("the bag-of-words index has ", index.size(),
@@ -99,8 +99,10 @@ std::vector<BowCandidate> ScoreBowCandidates(
                                                among, deadline, &late, excluded))
     out.push_back({s.index, s.score, -1});
   if (stopped != nullptr) *stopped = late;
-  // Out of time, the bag-of-words order stands.
+  // Out of time, the bag-of-words order stands; with no cut to make, it
+  // stands too, unless the counts are asked for.
   if (!guided || late) return out;
+  if (out.size() <= static_cast<size_t>(options.guided_candidates) && !count_always) return out;
   const GuidedMatcher guided_matcher(block, nodes.data(), nodes.size(), match);
   // Counted while the mean count so far still fits before the deadline (the
   // first always).

@@ -43,12 +43,14 @@ struct BowCandidate {
 // Step 1: the best options.bow_candidates keyframes of `among` by
 // bag-of-words score (best first, ties: the lower index), each with its
 // guided match count when options.guided_candidates > 0 (counted while the
-// deadline allows, the first always; the uncounted keep -1). *stopped is set
-// when the deadline cut the scoring or the counting.
+// deadline allows, the first always; the uncounted keep -1), unless the list
+// is no longer than guided_candidates and not `count_always` (no cut follows:
+// the bow search skips the counts; a partition's shortlist needs them).
+// *stopped is set when the deadline cut the scoring or the counting.
 std::vector<BowCandidate> ScoreBowCandidates(
     const GrowingBowIndex& index, const Database& db, const FeatureSet& query,
     const RetrievalOptions& options, const MatchOptions& match, const std::vector<uint32_t>* among,
-    const uint8_t* excluded, const Deadline& deadline, bool* stopped);
+    const uint8_t* excluded, const Deadline& deadline, bool* stopped, bool count_always = false);
 
 // Step 2, on step 1's list (best bag-of-words score first): when guided
 // ranking is on and the list is longer than guided_candidates, the

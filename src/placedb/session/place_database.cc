@@ -110,6 +110,7 @@ void PlaceDatabase::Impl::KeepResidentUnderLimit() const {
   constexpr uint64_t kSlice = uint64_t{8} << 20;
   constexpr int kMaxSlices = 8;
   const uint64_t limit = static_cast<uint64_t>(open.resident_limit_mb) << 20;
+  if (ProcessFileBackedResidentBytes() <= limit) return;  // the common case: one read of statm
   // What may be let go: the keyframe file, and the index file but for its
   // posting lists (every query reads some of them, all over the section).
   struct Region {
