@@ -21,50 +21,48 @@ namespace placedb {
 
 namespace {
 
-// A well-mixed 64-bit hash of one (word, keyframe, weight) entry (the
+// A well-mixed 64-bit hash of one (word, keyframe, count) entry (the
 // finaliser of SplitMix64 over the packed fields), summed over a multiset.
-uint64_t EntryHash(uint32_t word, uint32_t keyframe, float weight) {
-  uint32_t bits = 0;
-  std::memcpy(&bits, &weight, sizeof(bits));
+uint64_t EntryHash(uint32_t word, uint32_t keyframe, uint32_t count) {
   uint64_t z = (static_cast<uint64_t>(word) << 32 | keyframe) * 0x9e3779b97f4a7c15ULL ^
-               (static_cast<uint64_t>(bits) + 0x632be59bd9b4e019ULL);
+               (static_cast<uint64_t>(count) + 0x632be59bd9b4e019ULL);
   z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
   z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
   return z ^ (z >> 31);
 }
 
 static_assert(offsetof(BowIndexFileHeader, vocabulary_checksum) == 32 &&
+                  offsetof(BowIndexFileHeader, direct_node_bytes) == 52 &&
                   offsetof(BowIndexFileHeader, num_entries) == 56 &&
+                  offsetof(BowIndexFileHeader, keyframe_bytes) == 80 &&
                   offsetof(BowIndexFileHeader, header_checksum) ==
                       flat_file::kHeaderChecksumOffset &&
                   sizeof(BowIndexFileHeader) == flat_file::kHeaderBytes,
               "the index header's layout");
 
-constexpr size_t kPostingBytes = 8;
-
-// Where the sections of an index file lie.
+// Where the sections of a version 3 index file lie.
 struct SectionOffsets {
   explicit SectionOffsets(uint64_t limit) : layout(limit) {}
   flat_file::Layout layout;
-  uint64_t ids = 0, vector_offsets = 0, vector_words = 0, vector_weights = 0, direct_offsets = 0,
-           direct_nodes = 0, word_offsets = 0, postings = 0, keyframe_blocks = 0, word_blocks = 0;
+  uint64_t ids = 0, vector_offsets = 0, direct_offsets = 0, keyframe_byte_offsets = 0, totals = 0,
+           keyframe_bytes = 0, word_offsets = 0, word_byte_offsets = 0, postings = 0,
+           keyframe_blocks = 0, word_blocks = 0;
 };
-SectionOffsets IndexSections(uint32_t version, uint64_t keyframes, uint64_t entries,
-                             uint64_t features, uint64_t words, uint64_t limit) {
+SectionOffsets IndexSections(const BowIndexFileHeader& h, uint64_t limit) {
   SectionOffsets s(limit);
   flat_file::Layout& layout = s.layout;
+  const uint64_t keyframes = h.num_keyframes, words = h.num_words;
   s.ids = layout.Add(keyframes, sizeof(int32_t));
   s.vector_offsets = layout.Add(keyframes + 1, sizeof(uint64_t));
-  s.vector_words = layout.Add(entries, sizeof(uint32_t));
-  s.vector_weights = layout.Add(entries, sizeof(float));
   s.direct_offsets = layout.Add(keyframes + 1, sizeof(uint64_t));
-  s.direct_nodes = layout.Add(features, sizeof(uint32_t));
+  s.keyframe_byte_offsets = layout.Add(keyframes + 1, sizeof(uint64_t));
+  s.totals = layout.Add(keyframes, sizeof(double));
+  s.keyframe_bytes = layout.Add(h.keyframe_bytes, 1);
   s.word_offsets = layout.Add(words + 1, sizeof(uint64_t));
-  s.postings = layout.Add(entries, kPostingBytes);
-  if (version >= 2) {
-    s.keyframe_blocks = layout.Add(keyframes, sizeof(uint64_t));
-    s.word_blocks = layout.Add(words, sizeof(uint64_t));
-  }
+  s.word_byte_offsets = layout.Add(words + 1, sizeof(uint64_t));
+  s.postings = layout.Add(h.posting_bytes, 1);
+  s.keyframe_blocks = layout.Add(keyframes, sizeof(uint64_t));
+  s.word_blocks = layout.Add(words, sizeof(uint64_t));
   return s;
 }
 
@@ -75,10 +73,40 @@ double CommonTerm(double a, double b) {
   return a * b > 0.0 ? std::min(std::abs(a), std::abs(b)) : 0.0;
 }
 
-// The bag of words of `block`; `nodes` (optional) receives each row's node
-// at `direct_level`.
-BowVector MakeBowVector(const Vocabulary& vocabulary, int direct_level,
-                        const DescriptorBlock& block, std::vector<uint32_t>* nodes) {
+// A word's tf-idf weight in a vector: its count times its idf, over the
+// vector's total of those (L1 normalisation), in double, rounded to f32
+// once. The build, the vectors and the postings all compute it here.
+inline double RawWeight(uint32_t count, float idf) {
+  return static_cast<double>(count) * static_cast<double>(idf);
+}
+inline float EntryWeight(uint32_t count, float idf, double total) {
+  return static_cast<float>(RawWeight(count, idf) / total);
+}
+
+// EntryWeight's f32 without the division: raw x (1 / total) is within 3
+// double ulps of raw / total, so both round to the same f32 unless raw /
+// total lies that close to a midpoint between two f32s (the low 29 bits of
+// its significand near 2^28), where the division decides. Measured: the
+// division was a third of the scoring loop's time.
+inline float QuickWeight(double raw, double total, double inverse) {
+  const double product = raw * inverse;
+  uint64_t bits = 0;
+  std::memcpy(&bits, &product, sizeof(bits));
+  if (((bits & 0x1fffffff) - (0x10000000 - 8)) < 16) return static_cast<float>(raw / total);
+  return static_cast<float>(product);
+}
+
+// A keyframe's or a query's words with their counts (sorted, only words of
+// idf > 0), and the total of count x idf (in word order).
+struct WordCounts {
+  std::vector<uint32_t> words, counts;
+  double total = 0.0;
+};
+
+// The words of `block`; `nodes` (optional) receives each row's node at
+// `direct_level`.
+WordCounts CountWords(const Vocabulary& vocabulary, int direct_level, const DescriptorBlock& block,
+                      std::vector<uint32_t>* nodes) {
   if (block.rows < 0 || (block.rows > 0 && block.data == nullptr)) {
     PLACEDB_THROW_INVALID("a descriptor block without rows to read");
   }
@@ -94,24 +122,108 @@ BowVector MakeBowVector(const Vocabulary& vocabulary, int direct_level,
   vocabulary.Words(block.data, block.rows, nodes != nullptr ? direct_level : -1, words.data(),
                    nodes != nullptr ? nodes->data() : nullptr);
   std::sort(words.begin(), words.end());
-  // tf-idf: each occurrence adds the word's idf; then L1 normalisation.
-  BowVector v;
-  std::vector<double> raw;
-  double total = 0.0;
+  WordCounts out;
   for (size_t i = 0; i < words.size();) {
     size_t end = i;
     while (end < words.size() && words[end] == words[i]) ++end;
-    const double weight = static_cast<double>(end - i) * vocabulary.Idf(words[i]);
+    const uint32_t count = static_cast<uint32_t>(end - i);
+    const double weight = RawWeight(count, vocabulary.Idf(words[i]));
     if (weight > 0.0) {
-      v.words.push_back(words[i]);
-      raw.push_back(weight);
-      total += weight;
+      out.words.push_back(words[i]);
+      out.counts.push_back(count);
+      out.total += weight;
     }
     i = end;
   }
-  v.weights.reserve(raw.size());
-  for (const double weight : raw) v.weights.push_back(static_cast<float>(weight / total));
+  return out;
+}
+
+// tf-idf: each occurrence adds the word's idf; then L1 normalisation.
+BowVector WeightedVector(const Vocabulary& vocabulary, const WordCounts& counted) {
+  BowVector v;
+  v.words = counted.words;
+  v.weights.reserve(counted.words.size());
+  for (size_t e = 0; e < counted.words.size(); ++e) {
+    v.weights.push_back(
+        EntryWeight(counted.counts[e], vocabulary.Idf(counted.words[e]), counted.total));
+  }
   return v;
+}
+
+// The entries of version 3 (see the top of bow_index.h): LEB128 varints.
+void PutVarint(uint64_t value, std::vector<uint8_t>* out) {
+  while (value >= 0x80) {
+    out->push_back(static_cast<uint8_t>(value | 0x80));
+    value >>= 7;
+  }
+  out->push_back(static_cast<uint8_t>(value));
+}
+void PutEntry(uint32_t value, uint32_t previous_plus_one, uint32_t count,
+              std::vector<uint8_t>* out) {
+  PutVarint((static_cast<uint64_t>(value - previous_plus_one) << 1) | (count > 1 ? 1 : 0), out);
+  if (count > 1) PutVarint(count - 2, out);
+}
+// Reads a varint from [*p, end): false when it runs past `end` or past 64
+// bits.
+bool ReadVarint(const uint8_t** p, const uint8_t* end, uint64_t* value) {
+  uint64_t v = 0;
+  for (int shift = 0; shift < 64; shift += 7) {
+    if (*p == end) return false;
+    const uint8_t byte = *(*p)++;
+    if (shift == 63 && byte > 1) return false;
+    v |= static_cast<uint64_t>(byte & 0x7f) << shift;
+    if (!(byte & 0x80)) {
+      *value = v;
+      return true;
+    }
+  }
+  return false;
+}
+// The same on checked bytes (no bounds).
+inline uint64_t ReadCheckedVarint(const uint8_t*& p) {
+  uint64_t v = *p & 0x7f;
+  if (!(*p++ & 0x80)) return v;
+  for (int shift = 7;; shift += 7) {
+    const uint8_t byte = *p++;
+    v |= static_cast<uint64_t>(byte & 0x7f) << shift;
+    if (!(byte & 0x80)) return v;
+  }
+}
+// Reads `n` entries from [p, end), each value below `limit`, ascending;
+// calls visit(value, count) for each. "" or why they are impossible;
+// *used receives the bytes read.
+template <typename Visit>
+std::string ReadEntries(const uint8_t* p, const uint8_t* end, uint64_t n, uint64_t limit,
+                        const Visit& visit, uint64_t* used) {
+  const uint8_t* begin = p;
+  uint64_t next = 0;  // the previous value + 1
+  for (uint64_t e = 0; e < n; ++e) {
+    uint64_t code = 0, extra = 0;
+    if (!ReadVarint(&p, end, &code)) return "an entry runs past its block or past 64 bits";
+    if ((code >> 1) >= limit - std::min(next, limit)) {
+      return internal::JoinMessage("an entry's value is not ascending and below ", limit);
+    }
+    const uint64_t value = next + (code >> 1);
+    if ((code & 1) && (!ReadVarint(&p, end, &extra) || extra > (uint64_t{1} << 30)))
+      return "an entry's count runs past its block or is beyond 2^30";
+    visit(static_cast<uint32_t>(value), static_cast<uint32_t>((code & 1) ? extra + 2 : 1));
+    next = value + 1;
+  }
+  *used = static_cast<uint64_t>(p - begin);
+  return "";
+}
+// The same on checked bytes; returns the end of the entries.
+template <typename Visit>
+inline const uint8_t* ReadCheckedEntries(const uint8_t* p, uint64_t n, const Visit& visit) {
+  uint32_t next = 0;
+  for (uint64_t e = 0; e < n; ++e) {
+    const uint64_t code = ReadCheckedVarint(p);
+    const uint32_t value = next + static_cast<uint32_t>(code >> 1);
+    const uint32_t count = (code & 1) ? static_cast<uint32_t>(ReadCheckedVarint(p)) + 2 : 1;
+    if (!visit(value, count)) break;
+    next = value + 1;
+  }
+  return p;
 }
 
 // Per-thread scratch of Query: a dense score per keyframe and an "among"
@@ -145,6 +257,23 @@ class ScratchReset {
   const std::vector<uint32_t>* among_;
 };
 
+// The nodes a direct entry at `level` may name, ascending: the level's
+// nodes and the leaves above it.
+std::vector<uint32_t> DirectNodesByRank(const Vocabulary& vocab, uint32_t level) {
+  std::vector<uint32_t> out;
+  for (uint32_t node = 0; node < vocab.num_nodes(); ++node) {
+    const Vocabulary::Node& n = vocab.node(node);
+    if (n.level == level || (n.num_children == 0 && n.level < level)) out.push_back(node);
+  }
+  return out;
+}
+uint32_t DirectNodeBytes(size_t ranks) { return ranks <= 256 ? 1 : ranks <= 65536 ? 2 : 4; }
+uint32_t ReadRank(const uint8_t* p, uint32_t bytes) {
+  uint32_t v = 0;
+  std::memcpy(&v, p, bytes);  // little-endian host
+  return v;
+}
+
 }  // namespace
 
 double BowScore(const BowVector& a, const BowVector& b) {
@@ -166,58 +295,72 @@ double BowScore(const BowVector& a, const BowVector& b) {
 }
 
 // The arrays of an index file image, and the checks of its blocks: one
-// keyframe's vector and direct nodes, one word's postings (each adds its
+// keyframe's vector and direct entries, one word's postings (each adds its
 // entries' EntryHash to *hash, for the transposition check).
 struct BowIndex::Arrays {
-  uint32_t num_keyframes = 0, num_words = 0, direct_level = 0;
+  const Vocabulary* vocabulary = nullptr;
+  uint32_t num_keyframes = 0, num_words = 0, direct_level = 0, direct_node_bytes = 1;
+  uint64_t num_ranks = 0;  // the nodes a direct entry may name
   const uint64_t* vector_offsets = nullptr;
-  const uint32_t* vector_words = nullptr;
-  const float* vector_weights = nullptr;
   const uint64_t* direct_offsets = nullptr;
-  const uint32_t* direct_nodes = nullptr;
+  const uint64_t* keyframe_byte_offsets = nullptr;
+  const double* totals = nullptr;
+  const uint8_t* keyframe_bytes = nullptr;
   const uint64_t* word_offsets = nullptr;
-  const Posting* postings = nullptr;
-  const uint8_t* direct_node_ok = nullptr;  // per vocabulary node
-  size_t num_nodes = 0;
+  const uint64_t* word_byte_offsets = nullptr;
+  const uint8_t* postings = nullptr;
 
-  // The arrays of an image whose sections lie at `at` (the node table not
-  // set).
-  static Arrays At(const char* base, const SectionOffsets& at, uint32_t keyframes, uint32_t words) {
+  // The arrays of an image whose sections lie at `at` (vocabulary and
+  // ranks not set).
+  static Arrays At(const char* base, const SectionOffsets& at, const BowIndexFileHeader& h) {
     Arrays a;
-    a.num_keyframes = keyframes;
-    a.num_words = words;
+    a.num_keyframes = h.num_keyframes;
+    a.num_words = h.num_words;
+    a.direct_level = h.direct_level;
+    a.direct_node_bytes = h.direct_node_bytes;
     a.vector_offsets = reinterpret_cast<const uint64_t*>(base + at.vector_offsets);
-    a.vector_words = reinterpret_cast<const uint32_t*>(base + at.vector_words);
-    a.vector_weights = reinterpret_cast<const float*>(base + at.vector_weights);
     a.direct_offsets = reinterpret_cast<const uint64_t*>(base + at.direct_offsets);
-    a.direct_nodes = reinterpret_cast<const uint32_t*>(base + at.direct_nodes);
+    a.keyframe_byte_offsets = reinterpret_cast<const uint64_t*>(base + at.keyframe_byte_offsets);
+    a.totals = reinterpret_cast<const double*>(base + at.totals);
+    a.keyframe_bytes = reinterpret_cast<const uint8_t*>(base + at.keyframe_bytes);
     a.word_offsets = reinterpret_cast<const uint64_t*>(base + at.word_offsets);
-    a.postings = reinterpret_cast<const Posting*>(base + at.postings);
+    a.word_byte_offsets = reinterpret_cast<const uint64_t*>(base + at.word_byte_offsets);
+    a.postings = reinterpret_cast<const uint8_t*>(base + at.postings);
     return a;
   }
 
-  // Why keyframe i's vector or direct nodes are impossible, or "".
+  // Why keyframe i's vector or direct entries are impossible, or "".
   std::string CheckKeyframe(uint32_t i, uint64_t* hash) const {
-    uint64_t h = 0;
-    double sum = 0.0;
-    for (uint64_t e = vector_offsets[i]; e < vector_offsets[i + 1]; ++e) {
-      h += EntryHash(vector_words[e], i, vector_weights[e]);
-      if (vector_words[e] >= num_words ||
-          (e > vector_offsets[i] && vector_words[e - 1] >= vector_words[e])) {
-        return internal::JoinMessage("keyframe ", i, "'s words are not ascending and below ",
-                                     num_words);
-      }
-      if (!(std::isfinite(vector_weights[e]) && vector_weights[e] > 0.0f))
-        return internal::JoinMessage("keyframe ", i, " has weight ", vector_weights[e],
-                                     " (finite and > 0 expected)");
-      sum += vector_weights[e];
-    }
-    if (vector_offsets[i + 1] > vector_offsets[i] && std::abs(sum - 1.0) > 1e-3)
-      return internal::JoinMessage("keyframe ", i, "'s weights sum to ", sum, ", not 1");
-    for (uint64_t e = direct_offsets[i]; e < direct_offsets[i + 1]; ++e) {
-      const uint32_t node = direct_nodes[e];
-      if (node >= num_nodes || !direct_node_ok[node])
-        return internal::JoinMessage("direct entry ", e, " (node ", node,
+    const uint8_t* p = keyframe_bytes + keyframe_byte_offsets[i];
+    const uint8_t* end = keyframe_bytes + keyframe_byte_offsets[i + 1];
+    const uint64_t rows = direct_offsets[i + 1] - direct_offsets[i];
+    const uint64_t direct_bytes = rows * direct_node_bytes;
+    if (static_cast<uint64_t>(end - p) < direct_bytes)
+      return internal::JoinMessage("keyframe ", i, "'s block is shorter than its direct entries");
+    const uint8_t* vector_end = end - direct_bytes;
+    uint64_t h = 0, used = 0;
+    double total = 0.0;
+    bool idf_ok = true;
+    const std::string bad = ReadEntries(
+        p, vector_end, vector_offsets[i + 1] - vector_offsets[i], num_words,
+        [&](uint32_t word, uint32_t count) {
+          h += EntryHash(word, i, count);
+          const float idf = vocabulary->Idf(word);
+          idf_ok = idf_ok && idf > 0.0f;
+          total += RawWeight(count, idf);
+        },
+        &used);
+    if (!bad.empty()) return internal::JoinMessage("keyframe ", i, "'s words: ", bad);
+    if (p + used != vector_end)
+      return internal::JoinMessage("keyframe ", i, "'s words do not fill their block");
+    if (!idf_ok) return internal::JoinMessage("keyframe ", i, " has a word of idf 0");
+    if (!(total == totals[i]))
+      return internal::JoinMessage("keyframe ", i, "'s total ", totals[i], " is not its words' (",
+                                   total, ")");
+    for (uint64_t r = 0; r < rows; ++r) {
+      const uint32_t rank = ReadRank(vector_end + r * direct_node_bytes, direct_node_bytes);
+      if (rank >= num_ranks)
+        return internal::JoinMessage("direct entry ", direct_offsets[i] + r, " (rank ", rank,
                                      ") is not a node of level ", direct_level);
     }
     if (hash != nullptr) *hash += h;
@@ -225,18 +368,18 @@ struct BowIndex::Arrays {
   }
   // Why word w's postings are impossible, or "".
   std::string CheckWord(uint32_t word, uint64_t* hash) const {
-    uint64_t h = 0;
-    for (uint64_t p = word_offsets[word]; p < word_offsets[word + 1]; ++p) {
-      const uint32_t k = postings[p].keyframe;
-      if (k >= num_keyframes)
-        return internal::JoinMessage("a posting of word ", word, " names keyframe ", k);
-      if (p > word_offsets[word] && postings[p - 1].keyframe >= k)
-        return internal::JoinMessage("the postings of word ", word, " are not sorted by keyframe");
-      if (!(std::isfinite(postings[p].weight) && postings[p].weight > 0.0f))
-        return internal::JoinMessage("a posting of word ", word, " has weight ", postings[p].weight,
-                                     " (finite and > 0 expected)");
-      h += EntryHash(word, k, postings[p].weight);
-    }
+    const uint64_t n = word_offsets[word + 1] - word_offsets[word];
+    if (n > 0 && !(vocabulary->Idf(word) > 0.0f))
+      return internal::JoinMessage("word ", word, " has idf 0 but postings");
+    const uint8_t* p = postings + word_byte_offsets[word];
+    const uint8_t* end = postings + word_byte_offsets[word + 1];
+    uint64_t h = 0, used = 0;
+    const std::string bad = ReadEntries(
+        p, end, n, num_keyframes,
+        [&](uint32_t keyframe, uint32_t count) { h += EntryHash(word, keyframe, count); }, &used);
+    if (!bad.empty()) return internal::JoinMessage("the postings of word ", word, ": ", bad);
+    if (p + used != end)
+      return internal::JoinMessage("the postings of word ", word, " do not fill their block");
     if (hash != nullptr) *hash += h;
     return "";
   }
@@ -256,19 +399,14 @@ struct BowIndex::Arrays {
     }
     return CheckWord(word, hash);
   }
-  // The block checksums of version 2.
+  // The block checksums.
   uint64_t KeyframeSum(uint32_t i) const {
-    Checksum64Stream s;
-    const uint64_t b = vector_offsets[i], e = vector_offsets[i + 1];
-    s.Update(vector_words + b, (e - b) * sizeof(uint32_t));
-    s.Update(vector_weights + b, (e - b) * sizeof(float));
-    s.Update(direct_nodes + direct_offsets[i],
-             (direct_offsets[i + 1] - direct_offsets[i]) * sizeof(uint32_t));
-    return s.Digest();
+    return Checksum64(keyframe_bytes + keyframe_byte_offsets[i],
+                      keyframe_byte_offsets[i + 1] - keyframe_byte_offsets[i]);
   }
   uint64_t WordSum(uint32_t word) const {
-    return Checksum64(postings + word_offsets[word],
-                      (word_offsets[word + 1] - word_offsets[word]) * kPostingBytes);
+    return Checksum64(postings + word_byte_offsets[word],
+                      word_byte_offsets[word + 1] - word_byte_offsets[word]);
   }
 };
 
@@ -278,18 +416,20 @@ struct BowIndex::LazyCheck {
 
 BowIndex::Arrays BowIndex::MakeArrays() const {
   Arrays a;
+  a.vocabulary = vocabulary_.get();
   a.num_keyframes = num_keyframes_;
   a.num_words = vocabulary_->num_words();
   a.direct_level = static_cast<uint32_t>(direct_level_);
+  a.direct_node_bytes = direct_node_bytes_;
+  a.num_ranks = direct_nodes_by_rank_.size();
   a.vector_offsets = vector_offsets_;
-  a.vector_words = vector_words_;
-  a.vector_weights = vector_weights_;
   a.direct_offsets = direct_offsets_;
-  a.direct_nodes = direct_nodes_;
+  a.keyframe_byte_offsets = keyframe_byte_offsets_;
+  a.totals = totals_;
+  a.keyframe_bytes = keyframe_bytes_;
   a.word_offsets = word_offsets_;
+  a.word_byte_offsets = word_byte_offsets_;
   a.postings = postings_;
-  a.direct_node_ok = direct_node_ok_.data();
-  a.num_nodes = direct_node_ok_.size();
   return a;
 }
 
@@ -308,24 +448,22 @@ void CheckOnce(std::atomic<uint8_t>* checked, const std::string& shown, const Pr
 }  // namespace
 
 void BowIndex::EnsureKeyframeChecked(uint32_t index) const {
-  if (lazy_ == nullptr) return;
   CheckOnce(&lazy_->keyframe_checked[index], shown_,
             [&] { return MakeArrays().KeyframeBlockProblem(index, keyframe_sums_, nullptr); });
 }
 
 void BowIndex::EnsureWordChecked(uint32_t word) const {
-  if (lazy_ == nullptr) return;
   CheckOnce(&lazy_->word_checked[word], shown_,
             [&] { return MakeArrays().WordBlockProblem(word, word_sums_, nullptr); });
 }
 
 namespace {
 
-// Everything of an index's arrays: every keyframe's and word's block (and,
-// with `sums`, its block checksum), and the inverted file exactly the
-// vectors transposed. Halves of the vectors and of the postings (split
-// where half the entries lie) and `also` run at once. Throws
-// CorruptDatabase "<shown>: ...".
+// Everything of an index's arrays: every keyframe's and word's block and
+// its block checksum, and the inverted file exactly the vectors
+// transposed. Halves of the vectors and of the postings (split where half
+// the entries lie) and `also` run at once. Throws CorruptDatabase
+// "<shown>: ...".
 template <typename ArraysT>
 void CheckAllBlocks(const ArraysT& a, uint64_t entries, const uint64_t* keyframe_sums,
                     const uint64_t* word_sums, const std::string& shown,
@@ -364,17 +502,44 @@ void CheckAllBlocks(const ArraysT& a, uint64_t entries, const uint64_t* keyframe
   }
 }
 
-// The XXH3-64 of a version 2 file's tables (BowIndexFileHeader::tables_checksum).
+// The XXH3-64 of the tables (BowIndexFileHeader::tables_checksum).
 uint64_t TablesChecksum(const char* data, const SectionOffsets& at, uint64_t keyframes,
                         uint64_t words) {
   Checksum64Stream s;
   s.Update(data + at.ids, keyframes * sizeof(int32_t));
   s.Update(data + at.vector_offsets, (keyframes + 1) * sizeof(uint64_t));
   s.Update(data + at.direct_offsets, (keyframes + 1) * sizeof(uint64_t));
+  s.Update(data + at.keyframe_byte_offsets, (keyframes + 1) * sizeof(uint64_t));
+  s.Update(data + at.totals, keyframes * sizeof(double));
   s.Update(data + at.word_offsets, (words + 1) * sizeof(uint64_t));
+  s.Update(data + at.word_byte_offsets, (words + 1) * sizeof(uint64_t));
   s.Update(data + at.keyframe_blocks, keyframes * sizeof(uint64_t));
   s.Update(data + at.word_blocks, words * sizeof(uint64_t));
   return s.Digest();
+}
+
+// Fills in the block checksums of an image's blocks whose offsets lie
+// inside their sections (all of them, for an image that is built), then
+// the tables checksum.
+// (ArraysT: BowIndex::Arrays, named by its friends.)
+template <typename ArraysT>
+void SealBlocks(char* w, const SectionOffsets& at, BowIndexFileHeader* header, ThreadPool* pool) {
+  const ArraysT a = ArraysT::At(w, at, *header);
+  auto* keyframe_sums = reinterpret_cast<uint64_t*>(w + at.keyframe_blocks);
+  auto* word_sums = reinterpret_cast<uint64_t*>(w + at.word_blocks);
+  const auto inside = [](uint64_t begin, uint64_t end, uint64_t total) {
+    return begin <= end && end <= total;
+  };
+  ForEach(pool, a.num_keyframes, [&](size_t i) {
+    if (inside(a.keyframe_byte_offsets[i], a.keyframe_byte_offsets[i + 1], header->keyframe_bytes))
+      keyframe_sums[i] = a.KeyframeSum(static_cast<uint32_t>(i));
+  });
+  ForEach(pool, a.num_words, [&](size_t word) {
+    if (inside(a.word_byte_offsets[word], a.word_byte_offsets[word + 1], header->posting_bytes))
+      word_sums[word] = a.WordSum(static_cast<uint32_t>(word));
+  });
+  header->tables_checksum = TablesChecksum(w, at, header->num_keyframes, header->num_words);
+  std::memcpy(w, header, sizeof(*header));
 }
 
 }  // namespace
@@ -402,77 +567,100 @@ BowIndex BowIndex::Build(std::shared_ptr<const Vocabulary> vocabulary, const Dat
   if (!HostIsLittleEndian()) PLACEDB_THROW_IO("placedb indexes need a little-endian host");
 
   const size_t num_keyframes = db.size();
-  std::vector<BowVector> vectors(num_keyframes);
-  std::vector<std::vector<uint32_t>> nodes(num_keyframes);
+  const uint32_t num_words = vocabulary->num_words();
+  const std::vector<uint32_t> by_rank =
+      DirectNodesByRank(*vocabulary, static_cast<uint32_t>(options.direct_level));
+  std::vector<uint32_t> rank_of(vocabulary->num_nodes(), 0);
+  for (size_t r = 0; r < by_rank.size(); ++r) rank_of[by_rank[r]] = static_cast<uint32_t>(r);
+  const uint32_t node_bytes = DirectNodeBytes(by_rank.size());
+  // Each keyframe's block, and what the tables and postings need of it.
+  std::vector<WordCounts> counted(num_keyframes);
+  std::vector<std::vector<uint8_t>> blocks(num_keyframes);
+  std::vector<uint64_t> rows(num_keyframes);
   const auto transform = [&](size_t i) {
-    vectors[i] = MakeBowVector(*vocabulary, options.direct_level, db.Descriptors(i), &nodes[i]);
+    std::vector<uint32_t> nodes;
+    counted[i] = CountWords(*vocabulary, options.direct_level, db.Descriptors(i), &nodes);
+    const WordCounts& c = counted[i];
+    std::vector<uint8_t>& block = blocks[i];
+    uint32_t next = 0;
+    for (size_t e = 0; e < c.words.size(); ++e) {
+      PutEntry(c.words[e], next, c.counts[e], &block);
+      next = c.words[e] + 1;
+    }
+    for (const uint32_t node : nodes) {
+      const uint32_t rank = rank_of[node];
+      for (uint32_t b = 0; b < node_bytes; ++b)
+        block.push_back(static_cast<uint8_t>(rank >> 8 * b));
+    }
+    rows[i] = nodes.size();
     if (progress != nullptr) progress->Advance(1);
   };
   ForEach(pool, num_keyframes, transform);
-  uint64_t entries = 0, features = 0;
+  // The inverted file, each word's postings in keyframe order.
+  std::vector<std::vector<uint8_t>> lists(num_words);
+  std::vector<uint32_t> list_next(num_words, 0);
+  std::vector<uint64_t> list_entries(num_words, 0);
+  uint64_t entries = 0, features = 0, keyframe_bytes = 0, posting_bytes = 0;
   for (size_t i = 0; i < num_keyframes; ++i) {
-    entries += vectors[i].size();
-    features += nodes[i].size();
+    const WordCounts& c = counted[i];
+    for (size_t e = 0; e < c.words.size(); ++e) {
+      const uint32_t word = c.words[e];
+      PutEntry(static_cast<uint32_t>(i), list_next[word], c.counts[e], &lists[word]);
+      list_next[word] = static_cast<uint32_t>(i) + 1;
+      ++list_entries[word];
+    }
+    entries += c.words.size();
+    features += rows[i];
+    keyframe_bytes += blocks[i].size();
   }
-  const uint32_t num_words = vocabulary->num_words();
-  const SectionOffsets at = IndexSections(kBowIndexFormatVersion, num_keyframes, entries, features,
-                                          num_words, UINT64_MAX / 4);
-  char* w = nullptr;
-  flat_file::Image image = flat_file::NewImage(at.layout.end(), &w);
+  for (const std::vector<uint8_t>& list : lists) posting_bytes += list.size();
+
   BowIndexFileHeader header{};
   header.vocabulary_checksum = vocabulary->checksum();
   header.num_keyframes = static_cast<uint32_t>(num_keyframes);
   header.direct_level = static_cast<uint32_t>(options.direct_level);
   header.num_words = num_words;
+  header.direct_node_bytes = node_bytes;
   header.num_entries = entries;
   header.num_features = features;
-  std::memcpy(w, &header, sizeof(header));
-
+  header.keyframe_bytes = keyframe_bytes;
+  header.posting_bytes = posting_bytes;
+  const SectionOffsets at = IndexSections(header, UINT64_MAX / 4);
+  char* w = nullptr;
+  flat_file::Image image = flat_file::NewImage(at.layout.end(), &w);
   auto* ids = reinterpret_cast<int32_t*>(w + at.ids);
   auto* vector_offsets = reinterpret_cast<uint64_t*>(w + at.vector_offsets);
-  auto* vector_words = reinterpret_cast<uint32_t*>(w + at.vector_words);
-  auto* vector_weights = reinterpret_cast<float*>(w + at.vector_weights);
   auto* direct_offsets = reinterpret_cast<uint64_t*>(w + at.direct_offsets);
-  auto* direct_nodes = reinterpret_cast<uint32_t*>(w + at.direct_nodes);
+  auto* byte_offsets = reinterpret_cast<uint64_t*>(w + at.keyframe_byte_offsets);
+  auto* totals = reinterpret_cast<double*>(w + at.totals);
   auto* word_offsets = reinterpret_cast<uint64_t*>(w + at.word_offsets);
-  auto* postings = reinterpret_cast<Posting*>(w + at.postings);
-  uint64_t entry = 0, row = 0;
+  auto* word_byte_offsets = reinterpret_cast<uint64_t*>(w + at.word_byte_offsets);
+  uint64_t entry = 0, row = 0, byte = 0;
   for (size_t i = 0; i < num_keyframes; ++i) {
     ids[i] = db.keyframe(i).id;
     vector_offsets[i] = entry;
     direct_offsets[i] = row;
-    std::copy(vectors[i].words.begin(), vectors[i].words.end(), vector_words + entry);
-    std::copy(vectors[i].weights.begin(), vectors[i].weights.end(), vector_weights + entry);
-    std::copy(nodes[i].begin(), nodes[i].end(), direct_nodes + row);
-    for (const uint32_t word : vectors[i].words) ++word_offsets[word + 1];
-    entry += vectors[i].size();
-    row += nodes[i].size();
+    byte_offsets[i] = byte;
+    totals[i] = counted[i].total;
+    std::copy(blocks[i].begin(), blocks[i].end(), w + at.keyframe_bytes + byte);
+    entry += counted[i].words.size();
+    row += rows[i];
+    byte += blocks[i].size();
   }
   vector_offsets[num_keyframes] = entry;
   direct_offsets[num_keyframes] = row;
-  // The inverted file: word_offsets[w] counts word w's postings, then is
-  // its start; filling advances it to its end (the next word's start), which
-  // a shift by one undoes. Keyframes are visited in order, so each word's
-  // postings come out sorted by keyframe.
-  for (uint32_t word = 0; word < num_words; ++word) word_offsets[word + 1] += word_offsets[word];
-  for (size_t i = 0; i < num_keyframes; ++i) {
-    for (size_t e = 0; e < vectors[i].size(); ++e) {
-      postings[word_offsets[vectors[i].words[e]]++] =
-          Posting{static_cast<uint32_t>(i), vectors[i].weights[e]};
-    }
+  byte_offsets[num_keyframes] = byte;
+  entry = byte = 0;
+  for (uint32_t word = 0; word < num_words; ++word) {
+    word_offsets[word] = entry;
+    word_byte_offsets[word] = byte;
+    std::copy(lists[word].begin(), lists[word].end(), w + at.postings + byte);
+    entry += list_entries[word];
+    byte += lists[word].size();
   }
-  for (uint32_t word = num_words; word > 0; --word) word_offsets[word] = word_offsets[word - 1];
-  word_offsets[0] = 0;
-  // The block checksums, then the tables', in the header.
-  const Arrays a = Arrays::At(w, at, static_cast<uint32_t>(num_keyframes), num_words);
-  auto* keyframe_sums = reinterpret_cast<uint64_t*>(w + at.keyframe_blocks);
-  auto* word_sums = reinterpret_cast<uint64_t*>(w + at.word_blocks);
-  ForEach(pool, num_keyframes,
-          [&](size_t i) { keyframe_sums[i] = a.KeyframeSum(static_cast<uint32_t>(i)); });
-  ForEach(pool, num_words,
-          [&](size_t word) { word_sums[word] = a.WordSum(static_cast<uint32_t>(word)); });
-  header.tables_checksum = TablesChecksum(w, at, num_keyframes, num_words);
-  std::memcpy(w, &header, sizeof(header));
+  word_offsets[num_words] = entry;
+  word_byte_offsets[num_words] = byte;
+  SealBlocks<Arrays>(w, at, &header, pool);
   flat_file::Seal(w, at.layout.end(), kBowIndexMagic, kBowIndexFormatVersion);
   return FromImage(std::move(image), "(built index)", std::move(vocabulary), db);
 }
@@ -487,33 +675,30 @@ BowIndex BowIndex::Open(const std::string& path, std::shared_ptr<const Vocabular
 std::pair<uint64_t, uint64_t> BowIndex::PostingsExtent() const {
   if (postings_ == nullptr || image_.data == nullptr) return {0, 0};
   return {static_cast<uint64_t>(reinterpret_cast<const char*>(postings_) - image_.data),
-          word_offsets_[vocabulary_->num_words()] * sizeof(Posting)};
+          posting_bytes_};
 }
 
 BowIndex BowIndex::FromMapped(std::shared_ptr<const MappedFile> file, const std::string& shown,
                               std::shared_ptr<const Vocabulary> vocabulary, const Database& db) {
   BowIndex index = FromImage(flat_file::MapImage(file), shown, std::move(vocabulary), db);
-  index.mapping_ = std::move(file);
+  // A version 1 or 2 file was rebuilt in memory: nothing of it is used.
+  if (index.image_.data == file->data()) index.mapping_ = std::move(file);
   return index;
 }
 
 BowIndex BowIndex::FromImage(flat_file::Image image, const std::string& shown,
                              std::shared_ptr<const Vocabulary> vocabulary, const Database& db) {
-  static_assert(std::is_standard_layout<Posting>::value && sizeof(Posting) == kPostingBytes,
-                "Posting is the 8-byte posting record");
   PLACEDB_CHECK(vocabulary != nullptr, "a bag-of-words index needs a vocabulary");
   if (!HostIsLittleEndian()) PLACEDB_THROW_IO("placedb indexes need a little-endian host");
   auto fail = [&](const auto&... what) { PLACEDB_THROW_CORRUPT(shown, ": ", what...); };
-  // Version 1 is read too: the header check is for the version it says.
+  // Versions 1 and 2 are accepted too: the header check is for the version
+  // it says.
   uint32_t version = kBowIndexFormatVersion;
   if (image.size >= flat_file::kHeaderBytes) {
     const uint32_t said = flat_file::ReadHeader<BowIndexFileHeader>(image.data).common.version;
     if (said >= kOldestBowIndexFormatVersion && said <= kBowIndexFormatVersion) version = said;
   }
-  const bool lazy = version >= 2;
-  // The payload's checksum: version 1 checks it below, beside the checks
-  // that read the payload (all of them bounded by the header, which is
-  // checked here); version 2 per block, on first use.
+  // The payload's checksum is checked per block, on first use.
   flat_file::CheckSealedHeader(image, kBowIndexMagic, version, "bag-of-words index", shown);
   const auto header = flat_file::ReadHeader<BowIndexFileHeader>(image.data);
   const Vocabulary& vocab = *vocabulary;
@@ -531,7 +716,9 @@ BowIndex BowIndex::FromImage(flat_file::Image image, const std::string& shown,
     fail("the index counts ", num_words, " words, its vocabulary ", vocab.num_words());
   if (direct_level > static_cast<uint32_t>(vocab.depth()))
     fail("direct level ", direct_level, " is deeper than the vocabulary's depth ", vocab.depth());
-  if (header.reserved0 != 0 || (!lazy && header.tables_checksum != 0) ||
+  const bool old = version < 3;
+  if ((old && (header.direct_node_bytes != 0 || header.keyframe_bytes != 0 ||
+               header.posting_bytes != 0 || (version == 1 && header.tables_checksum != 0))) ||
       std::any_of(std::begin(header.reserved), std::end(header.reserved),
                   [](uint64_t v) { return v != 0; })) {
     fail("reserved header fields are not 0");
@@ -545,19 +732,31 @@ BowIndex BowIndex::FromImage(flat_file::Image image, const std::string& shown,
          " descriptors of ", db.descriptor_bytes(), " bytes, the vocabulary ",
          FeatureTypeName(vocab.type()), " of ", vocab.row_bytes(), ")");
   }
-  const SectionOffsets at =
-      IndexSections(version, num_keyframes, entries, features, num_words, image.size);
+  if (old) {
+    // Versions 1 and 2 (f32 arrays): the index they hold is the one the
+    // build makes from the database's descriptors and this vocabulary (both
+    // checked); it is made again, in the compact form, rather than read.
+    BowIndexOptions options;
+    options.direct_level = static_cast<int>(direct_level);
+    BowIndex index = Build(std::move(vocabulary), db, options, nullptr, nullptr);
+    index.shown_ = shown + " (format version " + std::to_string(version) + ", rebuilt)";
+    return index;
+  }
+  const std::vector<uint32_t> by_rank = DirectNodesByRank(vocab, direct_level);
+  if (header.direct_node_bytes != DirectNodeBytes(by_rank.size())) {
+    fail("direct entries of ", header.direct_node_bytes, " bytes (", by_rank.size(),
+         " nodes to name need ", DirectNodeBytes(by_rank.size()), ")");
+  }
+  const SectionOffsets at = IndexSections(header, image.size);
   if (at.layout.overflowed() || at.layout.end() != image.size) {
     fail("the file's size (", image.size, " bytes) does not match its ", num_keyframes,
-         " keyframes, ", entries, " entries and ", features, " feature rows");
+         " keyframes, ", header.keyframe_bytes, " keyframe bytes and ", header.posting_bytes,
+         " posting bytes");
   }
   if (!at.layout.PaddingIsZero(image.data)) fail("the padding between sections is not 0");
-  if (lazy && TablesChecksum(image.data, at, num_keyframes, num_words) != header.tables_checksum)
+  if (TablesChecksum(image.data, at, num_keyframes, num_words) != header.tables_checksum)
     fail("tables checksum mismatch (the file is corrupted)");
 
-  // The database: ids in order, feature counts.
-  const int32_t* ids = image.At<int32_t>(at.ids);
-  const uint64_t* direct_offsets = image.At<uint64_t>(at.direct_offsets);
   // Offsets start at 0, never decrease and end at the total.
   auto check_offsets = [&](const uint64_t* offsets, uint64_t count, uint64_t total,
                            const char* what) {
@@ -567,6 +766,9 @@ BowIndex BowIndex::FromImage(flat_file::Image image, const std::string& shown,
       if (offsets[i + 1] < offsets[i]) fail(what, " offsets decrease at ", i);
     }
   };
+  // The database: ids in order, feature counts.
+  const int32_t* ids = image.At<int32_t>(at.ids);
+  const uint64_t* direct_offsets = image.At<uint64_t>(at.direct_offsets);
   check_offsets(direct_offsets, num_keyframes, features, "direct");
   for (uint32_t i = 0; i < num_keyframes; ++i) {
     const int32_t id = db.keyframe(i).id;
@@ -582,8 +784,22 @@ BowIndex BowIndex::FromImage(flat_file::Image image, const std::string& shown,
   }
   const uint64_t* vector_offsets = image.At<uint64_t>(at.vector_offsets);
   check_offsets(vector_offsets, num_keyframes, entries, "vector");
+  const uint64_t* byte_offsets = image.At<uint64_t>(at.keyframe_byte_offsets);
+  check_offsets(byte_offsets, num_keyframes, header.keyframe_bytes, "keyframe byte");
   const uint64_t* word_offsets = image.At<uint64_t>(at.word_offsets);
   check_offsets(word_offsets, num_words, entries, "word");
+  const uint64_t* word_byte_offsets = image.At<uint64_t>(at.word_byte_offsets);
+  check_offsets(word_byte_offsets, num_words, header.posting_bytes, "word byte");
+  // The totals divide every posting's weight: finite and > 0 (0 for an
+  // empty vector), before any is read.
+  const double* totals = image.At<double>(at.totals);
+  auto inverses = std::make_shared<std::vector<double>>(num_keyframes);
+  for (uint32_t i = 0; i < num_keyframes; ++i) {
+    const bool empty = vector_offsets[i + 1] == vector_offsets[i];
+    if (empty ? totals[i] != 0.0 : !(std::isfinite(totals[i]) && totals[i] > 0.0))
+      fail("keyframe ", i, " has total ", totals[i]);
+    (*inverses)[i] = empty ? 0.0 : 1.0 / totals[i];
+  }
 
   BowIndex index;
   index.vocabulary_ = std::move(vocabulary);
@@ -592,41 +808,29 @@ BowIndex BowIndex::FromImage(flat_file::Image image, const std::string& shown,
   index.checksum_ = header.header_checksum;
   index.format_version_ = version;
   index.shown_ = shown;
+  index.direct_nodes_by_rank_ = by_rank;
+  index.direct_node_bytes_ = header.direct_node_bytes;
   index.vector_offsets_ = vector_offsets;
-  index.vector_words_ = image.At<uint32_t>(at.vector_words);
-  index.vector_weights_ = image.At<float>(at.vector_weights);
   index.direct_offsets_ = direct_offsets;
-  index.direct_nodes_ = image.At<uint32_t>(at.direct_nodes);
+  index.keyframe_byte_offsets_ = byte_offsets;
+  index.totals_ = totals;
+  index.inverse_totals_ = std::move(inverses);
+  index.keyframe_bytes_ = image.At<uint8_t>(at.keyframe_bytes);
   index.word_offsets_ = word_offsets;
-  index.postings_ = image.At<Posting>(at.postings);
-  // Which nodes a direct entry may name, as a table of one byte per node:
-  // the entries are then checked in one sequential pass instead of one
-  // random access into the tree each.
-  index.direct_node_ok_.assign(vocab.num_nodes(), 0);
-  for (uint32_t node = 0; node < vocab.num_nodes(); ++node) {
-    const Vocabulary::Node& n = vocab.node(node);
-    index.direct_node_ok_[node] =
-        n.level == direct_level || (n.num_children == 0 && n.level < direct_level);
-  }
-  if (lazy) {
-    index.keyframe_sums_ = image.At<uint64_t>(at.keyframe_blocks);
-    index.word_sums_ = image.At<uint64_t>(at.word_blocks);
-    auto check = std::make_shared<LazyCheck>();
-    check->keyframe_checked = std::make_unique<std::atomic<uint8_t>[]>(num_keyframes);
-    check->word_checked = std::make_unique<std::atomic<uint8_t>[]>(num_words);
-    index.lazy_ = std::move(check);
-  } else {
-    // Version 1: everything now, with the payload's checksum (whose failure
-    // is reported first).
-    CheckAllBlocks(index.MakeArrays(), entries, nullptr, nullptr, shown,
-                   [&] { flat_file::CheckPayloadChecksum(image, shown); });
-  }
+  index.word_byte_offsets_ = word_byte_offsets;
+  index.postings_ = image.At<uint8_t>(at.postings);
+  index.posting_bytes_ = header.posting_bytes;
+  index.keyframe_sums_ = image.At<uint64_t>(at.keyframe_blocks);
+  index.word_sums_ = image.At<uint64_t>(at.word_blocks);
+  auto check = std::make_shared<LazyCheck>();
+  check->keyframe_checked = std::make_unique<std::atomic<uint8_t>[]>(num_keyframes);
+  check->word_checked = std::make_unique<std::atomic<uint8_t>[]>(num_words);
+  index.lazy_ = std::move(check);
   index.image_ = std::move(image);
   return index;
 }
 
 void BowIndex::VerifyAll() const {
-  if (lazy_ == nullptr) return;
   CheckAllBlocks(MakeArrays(), word_offsets_[vocabulary_->num_words()], keyframe_sums_, word_sums_,
                  shown_, [&] { flat_file::CheckPayloadChecksum(image_, shown_); });
   for (uint32_t i = 0; i < num_keyframes_; ++i)
@@ -636,7 +840,7 @@ void BowIndex::VerifyAll() const {
 }
 
 BowVector BowIndex::Transform(const DescriptorBlock& query, std::vector<uint32_t>* nodes) const {
-  return MakeBowVector(*vocabulary_, direct_level_, query, nodes);
+  return WeightedVector(*vocabulary_, CountWords(*vocabulary_, direct_level_, query, nodes));
 }
 
 BowVector BowIndex::KeyframeVector(uint32_t index) const {
@@ -645,22 +849,33 @@ BowVector BowIndex::KeyframeVector(uint32_t index) const {
                           num_keyframes_, ")");
   }
   EnsureKeyframeChecked(index);
-  const uint64_t begin = vector_offsets_[index], end = vector_offsets_[index + 1];
+  const uint64_t n = vector_offsets_[index + 1] - vector_offsets_[index];
   BowVector v;
-  v.words.assign(vector_words_ + begin, vector_words_ + end);
-  v.weights.assign(vector_weights_ + begin, vector_weights_ + end);
+  v.words.reserve(n);
+  v.weights.reserve(n);
+  const double total = totals_[index];
+  ReadCheckedEntries(keyframe_bytes_ + keyframe_byte_offsets_[index], n,
+                     [&](uint32_t word, uint32_t count) {
+                       v.words.push_back(word);
+                       v.weights.push_back(EntryWeight(count, vocabulary_->Idf(word), total));
+                       return true;
+                     });
   return v;
 }
 
-Span<uint32_t> BowIndex::DirectNodes(uint32_t index) const {
+std::vector<uint32_t> BowIndex::DirectNodes(uint32_t index) const {
   if (index >= num_keyframes_) {
     PLACEDB_THROW_INVALID("keyframe index ", index, " is out of range (the index holds ",
                           num_keyframes_, ")");
   }
   EnsureKeyframeChecked(index);
-  const uint64_t begin = direct_offsets_[index];
-  return Span<uint32_t>(direct_nodes_ + begin,
-                        static_cast<size_t>(direct_offsets_[index + 1] - begin));
+  const uint64_t rows = direct_offsets_[index + 1] - direct_offsets_[index];
+  const uint8_t* p =
+      keyframe_bytes_ + keyframe_byte_offsets_[index + 1] - rows * direct_node_bytes_;
+  std::vector<uint32_t> out(rows);
+  for (uint64_t r = 0; r < rows; ++r)
+    out[r] = direct_nodes_by_rank_[ReadRank(p + r * direct_node_bytes_, direct_node_bytes_)];
+  return out;
 }
 
 std::vector<BowIndex::Scored> BowIndex::Query(const BowVector& query, size_t max_results,
@@ -685,10 +900,8 @@ std::vector<BowIndex::Scored> BowIndex::Query(const BowVector& query, size_t max
   }
   if (max_results == 0 || num_keyframes_ == 0) return {};
   // The postings the query reads, checked (once) before they are read.
-  if (lazy_ != nullptr) {
-    for (size_t i = 0; i < n; ++i) {
-      if (query.weights[i] > 0.0f) EnsureWordChecked(query.words[i]);
-    }
+  for (size_t i = 0; i < n; ++i) {
+    if (query.weights[i] > 0.0f) EnsureWordChecked(query.words[i]);
   }
 
   thread_local QueryScratch scratch;
@@ -698,9 +911,10 @@ std::vector<BowIndex::Scored> BowIndex::Query(const BowVector& query, size_t max
     scratch.touched.resize(num_keyframes_ + 1);
   }
   // A contiguous `among` (a partition of contiguous ranges) is walked as a
-  // range: each posting list (sorted by keyframe) from the range's first
-  // keyframe to its end, so that a partition reads its share of the
-  // postings, not all of them. The scores are the same.
+  // range: each posting list (sorted by keyframe) is decoded up to the
+  // range's end, and only the range's postings scored, so that a partition
+  // scores its share of the postings, not all of them. The scores are the
+  // same.
   const bool range =
       among != nullptr && !among->empty() && among->back() - among->front() + 1 == among->size();
   const uint32_t range_first = range ? among->front() : 0;
@@ -725,26 +939,30 @@ std::vector<BowIndex::Scored> BowIndex::Query(const BowVector& query, size_t max
   double* scores = scratch.scores.data();
   uint32_t* touched = scratch.touched.data();
   size_t& num_touched = scratch.num_touched;
-  // Every term is min(q, p) > 0 (stored weights are > 0; a keyframe outside
-  // `among` or excluded gets 0), so a score of 0 means "not touched yet", and each
-  // keyframe's terms are added in word order, as BowScore adds them (the
-  // min of two floats is exact, so it equals BowScore's min in double). The
-  // inner loop has no branch: which weight is smaller, and whether a
-  // keyframe is new, are coin flips for a branch predictor.
+  const double* totals = totals_;
+  const double* inverses = inverse_totals_->data();
+  // Every term is min(q, p) > 0 (stored counts, idfs and totals are > 0; a
+  // keyframe outside `among` or excluded gets 0), so a score of 0 means "not
+  // touched yet", and each keyframe's terms are added in word order, as
+  // BowScore adds them (the min of two floats is exact, so it equals
+  // BowScore's min in double; a posting's weight is computed as the
+  // keyframe vector's). The additions have no branch: which weight is
+  // smaller, and whether a keyframe is new, are coin flips for a branch
+  // predictor.
   const bool timed = deadline.enabled();
   const Timer scoring;
   size_t postings_done = 0;
   const auto accumulate = [&](auto with_among) {
     for (size_t i = 0; i < n; ++i) {
+      const uint32_t word = query.words[i];
       // Under a deadline, a word is scored only while its postings, at the
       // time per posting so far, still fit before it (not before a keyframe
       // has a score: the query examines at least one).
       // What remains after the word is the selection of the best among the
       // touched keyframes and resetting them: two steps per touched
-      // keyframe, each counted like a posting (measured: 1.4 ns for a
-      // selection step, 2.6 ns per posting, at 100 000 keyframes).
+      // keyframe, each counted like a posting.
+      const uint64_t postings = word_offsets_[word + 1] - word_offsets_[word];
       if (timed && num_touched > 0) {
-        const uint64_t postings = word_offsets_[query.words[i] + 1] - word_offsets_[query.words[i]];
         const double steps = static_cast<double>(3 * postings + 2 * num_touched);
         if (!deadline.Fits(steps * scoring.ElapsedMs() /
                            static_cast<double>(std::max<size_t>(postings_done, 1)))) {
@@ -755,27 +973,51 @@ std::vector<BowIndex::Scored> BowIndex::Query(const BowVector& query, size_t max
       // The posting lists lie far apart: fetch the offsets of a word 8 ahead
       // and the first postings of a word 4 ahead (its offsets are in cache
       // by now), so that memory latency overlaps the additions.
-      if (i + 8 < n) __builtin_prefetch(word_offsets_ + query.words[i + 8]);
-      if (i + 4 < n) __builtin_prefetch(postings_ + word_offsets_[query.words[i + 4]]);
+      if (i + 8 < n) {
+        __builtin_prefetch(word_offsets_ + query.words[i + 8]);
+        __builtin_prefetch(word_byte_offsets_ + query.words[i + 8]);
+      }
+      if (i + 4 < n) __builtin_prefetch(postings_ + word_byte_offsets_[query.words[i + 4]]);
       const float q = query.weights[i];
       if (!(q > 0.0f)) continue;
-      const Posting* p = postings_ + word_offsets_[query.words[i]];
-      const Posting* end = postings_ + word_offsets_[query.words[i] + 1];
-      if (range) {
-        const auto before_first = [](const Posting& x, uint32_t k) { return x.keyframe < k; };
-        p = std::lower_bound(p, end, range_first, before_first);
-        end = std::lower_bound(p, end, range_end, before_first);
-      }
-      postings_done += static_cast<size_t>(end - p);
-      for (; p != end; ++p) {
-        const uint32_t k = p->keyframe;
-        float term = std::min(q, p->weight);
+      const float idf = vocabulary_->Idf(word);
+      // The entries decoded here, not through ReadCheckedEntries: this loop
+      // is the query's; the count is kept in a register.
+      const uint8_t* p = postings_ + word_byte_offsets_[word];
+      uint32_t next = 0;
+      size_t touched_now = num_touched, done = 0;
+      for (uint64_t j = 0; j < postings; ++j) {
+        // Codes of one or two bytes (values below 2^14) without a branch;
+        // a longer one (a rare word's long gap) reads on. The second byte
+        // read may be the next section's (the postings never end a file).
+        uint64_t code;
+        uint16_t two;
+        std::memcpy(&two, p, sizeof(two));
+        if (__builtin_expect((two & 0x8080) != 0x8080, 1)) {
+          const uint32_t second = (two >> 7) & 1;  // b0's continuation bit
+          code = (two & 0x7f) | ((two >> 1) & 0x3f80 & (0u - second));
+          p += 1 + second;
+        } else {
+          code = ReadCheckedVarint(p);
+        }
+        const uint32_t k = next + static_cast<uint32_t>(code >> 1);
+        next = k + 1;
+        double raw = RawWeight(1, idf);
+        if (code & 1) raw = RawWeight(static_cast<uint32_t>(ReadCheckedVarint(p)) + 2, idf);
+        if (range) {
+          if (k < range_first) continue;
+          if (k >= range_end) break;
+        }
+        ++done;
+        float term = std::min(q, QuickWeight(raw, totals[k], inverses[k]));
         if constexpr (decltype(with_among)::value) term *= static_cast<float>(mask[k] ^ invert);
         const double before = scores[k];
-        touched[num_touched] = k;
-        num_touched += static_cast<size_t>((before == 0.0) & (term > 0.0f));
+        touched[touched_now] = k;
+        touched_now += static_cast<size_t>((before == 0.0) & (term > 0.0f));
         scores[k] = before + static_cast<double>(term);
       }
+      num_touched = touched_now;
+      postings_done += done;
     }
   };
   if (mask != nullptr) {
@@ -810,33 +1052,10 @@ std::vector<BowIndex::Scored> BowIndex::Query(const BowVector& query, size_t max
 void ResealBowIndex(std::string* bytes) {
   if (bytes->size() < flat_file::kHeaderBytes) return;
   auto header = flat_file::ReadHeader<BowIndexFileHeader>(bytes->data());
-  if (header.common.version >= 2) {
-    const SectionOffsets at =
-        IndexSections(header.common.version, header.num_keyframes, header.num_entries,
-                      header.num_features, header.num_words, bytes->size());
-    if (!at.layout.overflowed() && at.layout.end() <= bytes->size()) {
-      char* w = bytes->data();
-      const BowIndex::Arrays a =
-          BowIndex::Arrays::At(w, at, header.num_keyframes, header.num_words);
-      auto* keyframe_sums = reinterpret_cast<uint64_t*>(w + at.keyframe_blocks);
-      auto* word_sums = reinterpret_cast<uint64_t*>(w + at.word_blocks);
-      const auto inside = [](uint64_t begin, uint64_t end, uint64_t total) {
-        return begin <= end && end <= total;
-      };
-      // Only the blocks whose offsets lie inside their arrays.
-      for (uint32_t i = 0; i < a.num_keyframes; ++i) {
-        if (inside(a.vector_offsets[i], a.vector_offsets[i + 1], header.num_entries) &&
-            inside(a.direct_offsets[i], a.direct_offsets[i + 1], header.num_features)) {
-          keyframe_sums[i] = a.KeyframeSum(i);
-        }
-      }
-      for (uint32_t word = 0; word < a.num_words; ++word) {
-        if (inside(a.word_offsets[word], a.word_offsets[word + 1], header.num_entries))
-          word_sums[word] = a.WordSum(word);
-      }
-      header.tables_checksum = TablesChecksum(w, at, header.num_keyframes, header.num_words);
-      std::memcpy(w, &header, sizeof(header));
-    }
+  if (header.common.version == kBowIndexFormatVersion) {
+    const SectionOffsets at = IndexSections(header, bytes->size());
+    if (!at.layout.overflowed() && at.layout.end() <= bytes->size())
+      SealBlocks<BowIndex::Arrays>(bytes->data(), at, &header, nullptr);
   }
   flat_file::Reseal(bytes);
 }

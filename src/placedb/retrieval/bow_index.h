@@ -5,44 +5,63 @@
 // direct index (each feature row's vocabulary node at one level), which
 // narrows feature matching to the rows under the same node.
 //
-// The index file, format version 2 (version 1 is read too), little-endian,
-// used in place from a memory map (nothing is parsed or copied):
+// The index file, format version 3 (compact), little-endian, used in place
+// from a memory map (nothing is parsed or copied at open):
 //
 //   header (128 bytes, BowIndexFileHeader; the first 32 are flat_file's CommonHeader)
-//     char[8] magic "PLDBBW\r\n"   u32 format version (2)   u32 header bytes (128)
+//     char[8] magic "PLDBBW\r\n"   u32 format version (3)   u32 header bytes (128)
 //     u64 file bytes               u64 payload checksum: XXH3-64 of bytes [128, file bytes)
 //     32: u64 the vocabulary's checksum (Vocabulary::checksum())
-//     40: u32 keyframes K   u32 direct level   u32 vocabulary words W   u32 reserved (0)
+//     40: u32 keyframes K   u32 direct level   u32 vocabulary words W
+//     52: u32 direct node bytes D (1, 2 or 4: the width of a direct entry)
 //     56: u64 entries P (words over all keyframe vectors = postings)   u64 feature rows F
-//     72: u64 version 2: XXH3-64 of the tables (ids, vector offsets, direct
-//         offsets, word offsets, keyframe blocks, word blocks, in that
-//         order); version 1: 0
-//     80: reserved (0) up to the header checksum
+//     72: u64 XXH3-64 of the tables (ids, vector offsets, direct offsets,
+//         keyframe byte offsets, totals, word offsets, word byte offsets,
+//         keyframe blocks, word blocks, in that order)
+//     80: u64 keyframe bytes B   88: u64 posting bytes Q
+//     96: reserved (0) up to the header checksum
 //     120: u64 header checksum: XXH3-64 of bytes [0, 120)
 //   sections, each at the next multiple of 64 bytes (zero padding between), in this order:
-//     ids             K i32: the database's keyframe ids, in index order
-//     vector offsets  K + 1 u64: keyframe i's vector is entries [o[i], o[i + 1])
-//     vector words    P u32, ascending within a keyframe
-//     vector weights  P f32, > 0, summing to 1 per keyframe (tf-idf, L1)
-//     direct offsets  K + 1 u64: keyframe i's rows are direct entries [d[i], d[i + 1])
-//     direct nodes    F u32: each row's node at the direct level (database row order)
-//     word offsets    W + 1 u64: word w's postings are [w[w], w[w + 1])
-//     postings        P records of 8 bytes: u32 keyframe index (ascending within a
-//                     word), f32 weight (the keyframe vector's)
-//     keyframe blocks version 2: K u64, keyframe i's XXH3-64 of its vector words,
-//                     vector weights and direct nodes (fed in that order)
-//     word blocks     version 2: W u64, word w's XXH3-64 of its postings
+//     ids                   K i32: the database's keyframe ids, in index order
+//     vector offsets        K + 1 u64: keyframe i's vector is entries [o[i], o[i + 1])
+//     direct offsets        K + 1 u64: keyframe i's rows are direct entries [d[i], d[i + 1])
+//     keyframe byte offsets K + 1 u64: keyframe i's block is keyframe bytes [b[i], b[i + 1])
+//     totals                K f64: keyframe i's sum of count x idf over its words (0 when
+//                           it has none); a word's weight is f32(count x idf / total)
+//     keyframe bytes        B bytes: per keyframe, its vector as entries (below), its
+//                           words ascending, then its rows' direct entries, D bytes
+//                           each: the rank of the row's direct-level node among the
+//                           nodes a direct entry may name (the nodes of the direct
+//                           level and the leaves above it, in node order)
+//     word offsets          W + 1 u64: word w's postings are entries [w[w], w[w + 1])
+//     word byte offsets     W + 1 u64: ... and posting bytes [c[w], c[w + 1])
+//     postings              Q bytes: per word, its postings as entries, keyframe
+//                           indices ascending
+//     keyframe blocks       K u64: XXH3-64 of keyframe i's block of keyframe bytes
+//     word blocks           W u64: XXH3-64 of word w's posting bytes
 //   and the file ends with the last section.
+// An entry is a value (a word, or a keyframe index) and its count: the
+// LEB128 varint of (value - previous value - 1) x 2 + (count > 1) (the first
+// value's "previous" is -1), then, when count > 1, the varint of count - 2.
+// The weights are not stored: each is computed from its count, the word's
+// idf and the keyframe's total, the same double arithmetic as the build's,
+// so vectors and postings give the very weights an index of f32 weights
+// held (version 2), at 2-3 bytes an entry instead of 16.
 //
-// Integrity (version 2): opening checks the header, the section sizes and
-// the tables (their checksum, the offsets, the ids and feature counts
-// against the database), not the arrays they index: a keyframe's vector and
-// direct nodes are checked (block checksum, then the values) the first time
-// they are read, a word's postings the first time a query reads them. So
-// no byte influences an answer unchecked, and the open touches a few MB at
-// 100 000 keyframes instead of the whole file. VerifyAll checks everything
-// now, and that the inverted file is exactly the vectors transposed (what a
-// version 1 file has checked on open).
+// Versions 1 and 2 (f32 arrays) are still accepted: their header is checked
+// (vocabulary, database, direct level) and the index rebuilt in memory
+// from the database's descriptors, which gives the same index (it is
+// derived from them); saving the database writes version 3.
+//
+// Integrity: opening checks the header, the section sizes and the tables
+// (their checksum, the offsets, the totals, the ids and feature counts
+// against the database), not the bytes they index: a keyframe's block is
+// checked (block checksum, then every value, its total recomputed) the
+// first time it is read, a word's postings the first time a query reads
+// them. So no byte influences an answer unchecked, and the open touches a
+// few MB at 100 000 keyframes instead of the whole file. VerifyAll checks
+// everything now, and that the inverted file is exactly the vectors
+// transposed.
 #pragma once
 
 #include <cstddef>
@@ -56,7 +75,6 @@
 #include "placedb/retrieval/vocabulary.h"
 #include "placedb/storage/database.h"
 #include "placedb/util/mapped_file.h"
-#include "placedb/util/span.h"
 #include "placedb/util/timer.h"
 
 namespace placedb {
@@ -85,19 +103,21 @@ double BowScore(const BowVector& a, const BowVector& b);
 // The index file's magic, format version and header (see the top of this
 // file).
 constexpr char kBowIndexMagic[8] = {'P', 'L', 'D', 'B', 'B', 'W', '\r', '\n'};
-constexpr uint32_t kBowIndexFormatVersion = 2;        // written
-constexpr uint32_t kOldestBowIndexFormatVersion = 1;  // still read
+constexpr uint32_t kBowIndexFormatVersion = 3;        // written
+constexpr uint32_t kOldestBowIndexFormatVersion = 1;  // still accepted (rebuilt)
 struct BowIndexFileHeader {
   flat_file::CommonHeader common;
   uint64_t vocabulary_checksum;
   uint32_t num_keyframes;
   uint32_t direct_level;
-  uint32_t num_words;  // the vocabulary's
-  uint32_t reserved0;  // 0
+  uint32_t num_words;          // the vocabulary's
+  uint32_t direct_node_bytes;  // version 3; 0 before
   uint64_t num_entries;
   uint64_t num_features;
-  uint64_t tables_checksum;  // version 2; 0 in version 1
-  uint64_t reserved[5];      // 0
+  uint64_t tables_checksum;  // version 2 and 3; 0 in version 1
+  uint64_t keyframe_bytes;   // version 3; 0 before
+  uint64_t posting_bytes;    // version 3; 0 before
+  uint64_t reserved[3];      // 0
   uint64_t header_checksum;
 };
 
@@ -122,13 +142,15 @@ class BowIndex {
   // Writes the index file (layout at the top of this file) crash-safely.
   void Save(const std::string& path) const;
   // Memory-maps an index file and uses its arrays in place, after checking
-  // it: magic, version, sizes, checksums; that it was built with this
-  // vocabulary (its checksum) and this database (the keyframe count, every
-  // keyframe id in order, every keyframe's feature count); every vector's
-  // words ascending and < W with finite positive weights summing to 1; every
-  // direct node a node of the direct level (or a leaf above it); every
-  // posting's keyframe < K, ascending within its word, and the inverted file
-  // exactly the keyframe vectors transposed. Failures are CorruptDatabase
+  // it ("Integrity" above): magic, version, sizes, checksums; that it was
+  // built with this vocabulary (its checksum) and this database (the
+  // keyframe count, every keyframe id in order, every keyframe's feature
+  // count); then, on first use, every vector's words ascending and < W,
+  // each of idf > 0, with its total; every direct entry the rank of a node
+  // of the direct level (or a leaf above it); every posting's keyframe < K,
+  // ascending within its word (VerifyAll: and the inverted file exactly the
+  // keyframe vectors transposed). A version 1 or 2 file: its header is
+  // checked, then the index rebuilt from `db`. Failures are CorruptDatabase
   // naming the file (NotFound when there is no file) ("built with another vocabulary", "built with
   // another database", or what is damaged).
   static BowIndex Open(const std::string& path, std::shared_ptr<const Vocabulary> vocabulary,
@@ -155,7 +177,7 @@ class BowIndex {
   std::pair<uint64_t, uint64_t> PostingsExtent() const;
   // Checks everything not yet checked (see "Integrity" above): the payload
   // checksum, every keyframe's and word's block, and the transposition.
-  // CorruptDatabase naming the file; nothing to do for a version 1 file.
+  // CorruptDatabase naming the file.
   void VerifyAll() const;
   // The bytes of the index file (what Save writes).
   uint64_t file_bytes() const { return image_.size; }
@@ -169,8 +191,8 @@ class BowIndex {
   // CorruptDatabase when it is damaged.
   BowVector KeyframeVector(uint32_t index) const;
   // The direct-level node of each feature row of keyframe `index`, in the
-  // order of db.Descriptors(index)'s rows; a view valid while the index lives.
-  Span<uint32_t> DirectNodes(uint32_t index) const;
+  // order of db.Descriptors(index)'s rows.
+  std::vector<uint32_t> DirectNodes(uint32_t index) const;
 
   struct Scored {
     uint32_t index;  // keyframe index
@@ -200,12 +222,6 @@ class BowIndex {
                             const uint8_t* excluded = nullptr) const;
 
  private:
-  // A posting, the layout of the file's 8-byte record.
-  struct Posting {
-    uint32_t keyframe;
-    float weight;
-  };
-
   friend void ResealBowIndex(std::string* bytes);
   BowIndex() = default;
   // Checks an image against the vocabulary and database, then points the
@@ -214,14 +230,16 @@ class BowIndex {
                             std::shared_ptr<const Vocabulary> vocabulary, const Database& db);
   struct Arrays;
   Arrays MakeArrays() const;
-  // What checks a version 2 file's blocks on first use (shared by copies).
+  // What checks the blocks on first use (shared by copies).
   struct LazyCheck;
   std::shared_ptr<LazyCheck> lazy_;
   void EnsureKeyframeChecked(uint32_t index) const;
   void EnsureWordChecked(uint32_t word) const;
   std::string shown_;
   uint32_t format_version_ = kBowIndexFormatVersion;
-  std::vector<uint8_t> direct_node_ok_;  // per vocabulary node: a direct level node
+  // The nodes a direct entry may name, by rank (ascending).
+  std::vector<uint32_t> direct_nodes_by_rank_;
+  uint32_t direct_node_bytes_ = 1;
   const uint64_t* keyframe_sums_ = nullptr;
   const uint64_t* word_sums_ = nullptr;
 
@@ -232,12 +250,16 @@ class BowIndex {
   int direct_level_ = 0;
   uint64_t checksum_ = 0;
   const uint64_t* vector_offsets_ = nullptr;
-  const uint32_t* vector_words_ = nullptr;
-  const float* vector_weights_ = nullptr;
   const uint64_t* direct_offsets_ = nullptr;
-  const uint32_t* direct_nodes_ = nullptr;
+  const uint64_t* keyframe_byte_offsets_ = nullptr;
+  const double* totals_ = nullptr;
+  // 1 / total per keyframe (0 for an empty vector), for the query's loop.
+  std::shared_ptr<const std::vector<double>> inverse_totals_;
+  const uint8_t* keyframe_bytes_ = nullptr;
   const uint64_t* word_offsets_ = nullptr;
-  const Posting* postings_ = nullptr;
+  const uint64_t* word_byte_offsets_ = nullptr;
+  const uint8_t* postings_ = nullptr;
+  uint64_t posting_bytes_ = 0;
 };
 
 // Recomputes the block checksums, the tables checksum (version 2) and the

@@ -246,7 +246,7 @@ TEST(BowIndex, TransformGivesNormalisedSortedVectors) {
     std::vector<uint32_t> nodes;
     const BowVector v = index.Transform(w.db.Descriptors(i), &nodes);
     ExpectSameVector(v, index.KeyframeVector(i));
-    EXPECT_EQ(nodes, index.DirectNodes(i).ToVector());
+    EXPECT_EQ(nodes, index.DirectNodes(i));
     ASSERT_EQ(v.words.size(), v.weights.size());
     if (i == kKeyframes) {
       EXPECT_TRUE(v.empty());
@@ -275,7 +275,7 @@ TEST(BowIndex, DirectNodesHaveOneEntryPerFeatureRow) {
   const BowIndex& index = *w.index;
   EXPECT_EQ(index.direct_level(), 2);
   for (uint32_t i = 0; i < index.size(); ++i) {
-    const Span<uint32_t> nodes = index.DirectNodes(i);
+    const std::vector<uint32_t> nodes = index.DirectNodes(i);
     ASSERT_EQ(nodes.size(), w.db.FeatureCount(i));
     const DescriptorBlock block = w.db.Descriptors(i);
     for (int r = 0; r < block.rows; ++r) {
@@ -466,7 +466,7 @@ TEST(BowIndex, SaveOpenRoundTrip) {
   EXPECT_EQ(opened.file_bytes(), w.index->file_bytes());
   for (uint32_t i = 0; i < opened.size(); ++i) {
     ExpectSameVector(opened.KeyframeVector(i), w.index->KeyframeVector(i));
-    EXPECT_EQ(opened.DirectNodes(i).ToVector(), w.index->DirectNodes(i).ToVector());
+    EXPECT_EQ(opened.DirectNodes(i), w.index->DirectNodes(i));
   }
   // Copies and moves keep the mapped arrays alive.
   std::optional<BowIndex> copy = opened;
@@ -522,29 +522,30 @@ class BowIndexFileTest : public ::testing::Test {
  protected:
   void SetUp() override {
     good_ = SavedBytes(*Orb().index, dir_);
-    const auto header = flat_file::ReadHeader<BowIndexFileHeader>(good_.data());
-    keyframes_ = header.num_keyframes;
-    entries_ = header.num_entries;
-    features_ = header.num_features;
+    header_ = flat_file::ReadHeader<BowIndexFileHeader>(good_.data());
+    keyframes_ = header_.num_keyframes;
+    entries_ = header_.num_entries;
+    features_ = header_.num_features;
     words_ = Orb().vocabulary->num_words();
     flat_file::Layout layout(UINT64_MAX);
     layout.Add(keyframes_, 4);
     vector_offsets_ = layout.Add(keyframes_ + 1, 8);
-    vector_words_ = layout.Add(entries_, 4);
-    vector_weights_ = layout.Add(entries_, 4);
-    layout.Add(keyframes_ + 1, 8);
-    direct_nodes_ = layout.Add(features_, 4);
+    direct_offsets_ = layout.Add(keyframes_ + 1, 8);
+    byte_offsets_ = layout.Add(keyframes_ + 1, 8);
+    totals_ = layout.Add(keyframes_, 8);
+    keyframe_bytes_ = layout.Add(header_.keyframe_bytes, 1);
     word_offsets_ = layout.Add(words_ + 1, 8);
-    postings_ = layout.Add(entries_, 8);
+    word_byte_offsets_ = layout.Add(words_ + 1, 8);
+    postings_ = layout.Add(header_.posting_bytes, 1);
     keyframe_blocks_ = layout.Add(keyframes_, 8);
     word_blocks_ = layout.Add(words_, 8);
     ASSERT_EQ(layout.end(), good_.size());
+    ASSERT_EQ(header_.direct_node_bytes, 1u);  // 64 nodes at level 2
   }
 
   ::testing::AssertionResult Rejects(const std::string& bytes, const std::string& what) {
     const std::string path = dir_.Write("damaged.bin", bytes);
-    // Opened, and every byte checked (a version 2 file checks its blocks on
-    // first use).
+    // Opened, and every byte checked (blocks are checked on first use).
     return ThrowsWith<CorruptDatabase>(
         [&] { BowIndex::Open(path, Orb().vocabulary, Orb().db).VerifyAll(); }, {path, what});
   }
@@ -572,13 +573,23 @@ class BowIndexFileTest : public ::testing::Test {
     return value;
   }
   uint64_t WordOffset(uint32_t word) const { return At<uint64_t>(word_offsets_ + 8 * word); }
+  uint64_t WordByte(uint32_t word) const { return At<uint64_t>(word_byte_offsets_ + 8 * word); }
+  uint64_t KeyframeByte(uint32_t i) const { return At<uint64_t>(byte_offsets_ + 8 * i); }
+  // A word with at least two postings.
+  uint32_t WordWithPostings() const {
+    uint32_t word = 0;
+    while (WordOffset(word + 1) - WordOffset(word) < 2) ++word;
+    return word;
+  }
 
   TempDir dir_;
   std::string good_;
+  BowIndexFileHeader header_{};
   uint32_t keyframes_ = 0, words_ = 0;
   uint64_t entries_ = 0, features_ = 0;
-  uint64_t vector_offsets_ = 0, vector_words_ = 0, vector_weights_ = 0, direct_nodes_ = 0,
-           word_offsets_ = 0, postings_ = 0, keyframe_blocks_ = 0, word_blocks_ = 0;
+  uint64_t vector_offsets_ = 0, direct_offsets_ = 0, byte_offsets_ = 0, totals_ = 0,
+           keyframe_bytes_ = 0, word_offsets_ = 0, word_byte_offsets_ = 0, postings_ = 0,
+           keyframe_blocks_ = 0, word_blocks_ = 0;
 };
 
 TEST_F(BowIndexFileTest, OpenRejectsTruncatedAndFlippedFiles) {
@@ -605,79 +616,94 @@ TEST_F(BowIndexFileTest, OpenRejectsBadHeaderFields) {
   EXPECT_TRUE(Rejects(WithHeader([](H& h) { ++h.num_keyframes; }), "built with another database"));
   EXPECT_TRUE(Rejects(WithHeader([](H& h) { h.direct_level = 4; }), "deeper"));
   EXPECT_TRUE(Rejects(WithHeader([](H& h) { ++h.num_words; }), "words"));
-  EXPECT_TRUE(Rejects(WithHeader([](H& h) { h.reserved0 = 1; }), "reserved"));
-  EXPECT_TRUE(Rejects(WithHeader([](H& h) { h.reserved[4] = 1; }), "reserved"));
+  EXPECT_TRUE(Rejects(WithHeader([](H& h) { h.direct_node_bytes = 2; }), "direct entries of 2"));
+  EXPECT_TRUE(Rejects(WithHeader([](H& h) { h.reserved[2] = 1; }), "reserved"));
   EXPECT_TRUE(Rejects(WithHeader([](H& h) { ++h.tables_checksum; }), "tables checksum mismatch"));
-  // One more entry: the sections' padding may absorb it (then the offsets
-  // disagree), or the size does not match.
+  // One more byte or entry: the sections' padding may absorb it (then the
+  // offsets disagree), or the size does not match.
   EXPECT_TRUE(Rejects(WithHeader([](H& h) { ++h.num_entries; }), ""));
-  EXPECT_TRUE(Rejects(WithHeader([](H& h) { h.num_entries = UINT64_MAX / 2; }), "does not match"));
+  EXPECT_TRUE(Rejects(WithHeader([](H& h) { ++h.keyframe_bytes; }), ""));
+  EXPECT_TRUE(Rejects(WithHeader([](H& h) { ++h.posting_bytes; }), ""));
+  EXPECT_TRUE(
+      Rejects(WithHeader([](H& h) { h.posting_bytes = UINT64_MAX / 2; }), "does not match"));
   EXPECT_TRUE(Rejects(WithHeader([](H& h) { --h.num_features; }), ""));
 }
 
 TEST_F(BowIndexFileTest, OpenRejectsBadSections) {
-  // Keyframe vectors.
-  EXPECT_TRUE(Rejects(With<uint32_t>(vector_words_, words_), "ascending and below"));
-  EXPECT_TRUE(Rejects(With<uint32_t>(vector_words_ + 4, 0), "ascending"));
-  EXPECT_TRUE(Rejects(With<float>(vector_weights_, std::numeric_limits<float>::quiet_NaN()),
-                      "(finite and > 0 expected)"));
-  EXPECT_TRUE(Rejects(With<float>(vector_weights_, 0.0f), "(finite and > 0 expected)"));
-  EXPECT_TRUE(Rejects(With<float>(vector_weights_, 0.9f), "sum to"));
+  // Tables.
   EXPECT_TRUE(Rejects(With<uint64_t>(vector_offsets_, 1), "vector offsets"));
   EXPECT_TRUE(
       Rejects(With<uint64_t>(vector_offsets_ + 8, entries_ + 1), "vector offsets decrease"));
-  // Direct index.
-  EXPECT_TRUE(Rejects(With<uint32_t>(direct_nodes_, Orb().vocabulary->num_nodes()),
-                      "is not a node of level 2"));
-  EXPECT_TRUE(Rejects(With<uint32_t>(direct_nodes_, 0), "direct entry 0 (node 0)"));
+  EXPECT_TRUE(Rejects(With<uint64_t>(byte_offsets_ + 8, header_.keyframe_bytes + 1),
+                      "keyframe byte offsets decrease"));
+  EXPECT_TRUE(Rejects(With<uint64_t>(word_byte_offsets_ + 8, header_.posting_bytes + 1),
+                      "word byte offsets decrease"));
+  EXPECT_TRUE(Rejects(With<double>(totals_, std::numeric_limits<double>::quiet_NaN()),
+                      "keyframe 0 has total nan"));
+  EXPECT_TRUE(Rejects(With<double>(totals_, -1.0), "keyframe 0 has total -1"));
+  EXPECT_TRUE(Rejects(With<double>(totals_, At<double>(totals_) * 0.5), "is not its words'"));
+  EXPECT_TRUE(Rejects(With<double>(totals_ + 8 * kKeyframes, 1.0), "has total 1"));  // empty
+  // Keyframe vectors: a count flag set moves every entry after it.
+  const uint64_t first_entry = keyframe_bytes_ + KeyframeByte(0);
+  EXPECT_TRUE(Rejects(With<uint8_t>(first_entry, At<uint8_t>(first_entry) ^ 1), "keyframe 0"));
+  // A first word beyond the vocabulary (the varint of (W << 1), then the rest).
+  EXPECT_TRUE(Rejects(With<uint8_t>(first_entry, 0xff), "keyframe 0"));
+  // Direct entries: the last byte of keyframe 0's block.
+  const uint64_t last_direct = keyframe_bytes_ + KeyframeByte(1) - 1;
+  EXPECT_TRUE(Rejects(With<uint8_t>(last_direct, 200), "(rank 200) is not a node of level 2"));
   // Inverted file.
-  uint32_t word = 0;
-  while (WordOffset(word + 1) - WordOffset(word) < 2) ++word;
-  const uint64_t first = postings_ + 8 * WordOffset(word);
-  EXPECT_TRUE(Rejects(With<uint32_t>(first, keyframes_), "names keyframe"));
-  std::string swapped = good_;
-  std::swap_ranges(swapped.begin() + first, swapped.begin() + first + 8,
-                   swapped.begin() + first + 8);
-  ResealBowIndex(&swapped);
-  EXPECT_TRUE(Rejects(swapped, "are not sorted by keyframe"));
-  const float weight = At<float>(first + 4);
-  EXPECT_TRUE(
-      Rejects(With<float>(first + 4, weight * 0.5f), "disagrees with the keyframe vectors"));
-  // A posting moved to another keyframe, a posting moved to another word:
-  // the order within the word breaks first.
-  EXPECT_TRUE(Rejects(With<uint32_t>(first, keyframes_ - 1), "not sorted by keyframe"));
+  const uint32_t word = WordWithPostings();
+  const uint64_t first = postings_ + WordByte(word);
+  EXPECT_TRUE(Rejects(With<uint8_t>(first, static_cast<uint8_t>(2 * keyframes_)),
+                      "the postings of word " + std::to_string(word)));
+  // A posting moved to the next keyframe: the transposition breaks.
+  uint8_t code = At<uint8_t>(first);
+  ASSERT_LT(code, 0x7e);
+  EXPECT_TRUE(Rejects(With<uint8_t>(first, static_cast<uint8_t>(code + 2)),
+                      "disagrees with the keyframe vectors"));
+  // A posting moved to the next word: the bytes no longer fill the blocks.
   EXPECT_TRUE(Rejects(With<uint64_t>(word_offsets_ + 8 * (word + 1), WordOffset(word + 1) - 1),
-                      "not sorted by keyframe"));
+                      "the postings of word"));
   EXPECT_TRUE(Rejects(With<uint64_t>(word_offsets_ + 8 * (word + 1), entries_ + 1),
                       "word offsets decrease"));
 }
 
 TEST_F(BowIndexFileTest, ResealedRandomDamageIsCaught) {
-  // Every array of the index but the direct nodes is checked against the
+  // Every byte of the index but the direct entries is checked against the
   // others, the vocabulary or the database, and padding must be 0, so no
-  // resealed bit flip there opens (a changed weight breaks the
-  // transposition). A direct node may turn into another node of its level.
+  // resealed bit flip there opens (a changed entry breaks its total, its
+  // block's length or the transposition). A direct entry may turn into
+  // another node of its level.
+  std::vector<bool> direct(good_.size(), false);
+  for (uint32_t i = 0; i < keyframes_; ++i) {
+    const uint64_t rows =
+        At<uint64_t>(direct_offsets_ + 8 * (i + 1)) - At<uint64_t>(direct_offsets_ + 8 * i);
+    for (uint64_t b = keyframe_bytes_ + KeyframeByte(i + 1) - rows;
+         b < keyframe_bytes_ + KeyframeByte(i + 1); ++b)
+      direct[b] = true;
+  }
   std::mt19937_64 rng(9);
-  for (int trial = 0; trial < 300; ++trial) {
+  int tried = 0;
+  for (int trial = 0; trial < 400; ++trial) {
     const uint64_t at = flat_file::kHeaderBytes + rng() % (good_.size() - flat_file::kHeaderBytes);
-    if (at >= direct_nodes_ && at < direct_nodes_ + 4 * features_) continue;
+    if (direct[at]) continue;
     if (at >= keyframe_blocks_) continue;  // the block checksums: resealing recomputes them
     std::string bytes = good_;
     bytes[at] = static_cast<char>(bytes[at] ^ (1 << (rng() % 8)));
     ResealBowIndex(&bytes);
     ASSERT_TRUE(Rejects(bytes, "")) << "byte " << at;
+    ++tried;
   }
+  EXPECT_GT(tried, 200);
   EXPECT_TRUE(Rejects(With<char>(vector_offsets_ - 1, 1), "padding"));
 }
 
-// Version 2 opens without reading the vectors, direct nodes and postings,
-// and checks each block the first time it is read: damage there does not
-// stop the open, but reaches no answer.
+// The blocks are not read on open; each is checked the first time it is
+// read: damage there does not stop the open, but reaches no answer.
 TEST_F(BowIndexFileTest, BlocksAreCheckedOnFirstUse) {
-  uint32_t word = 0;
-  while (WordOffset(word + 1) - WordOffset(word) < 2) ++word;
+  const uint32_t word = WordWithPostings();
   std::string bytes = good_;
-  bytes[postings_ + 8 * WordOffset(word) + 5] ^= 0x01;  // a weight; not resealed
+  bytes[postings_ + WordByte(word)] ^= 0x02;  // a keyframe; not resealed
   const std::string path = dir_.Write("lazy.bin", bytes);
   const BowIndex index = BowIndex::Open(path, Orb().vocabulary, Orb().db);
   EXPECT_EQ(index.format_version(), kBowIndexFormatVersion);
@@ -693,9 +719,9 @@ TEST_F(BowIndexFileTest, BlocksAreCheckedOnFirstUse) {
       {path, "the postings of word " + std::to_string(word), "fail their block checksum"}));
   EXPECT_NO_THROW(index.KeyframeVector(0));
   EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { index.VerifyAll(); }, "payload checksum mismatch"));
-  // A keyframe's direct nodes.
+  // A keyframe's direct entries.
   bytes = good_;
-  bytes[direct_nodes_ + 2] ^= 0x40;
+  bytes[keyframe_bytes_ + KeyframeByte(1) - 2] ^= 0x01;
   const std::string path2 = dir_.Write("lazy2.bin", bytes);
   const BowIndex index2 = BowIndex::Open(path2, Orb().vocabulary, Orb().db);
   EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { index2.DirectNodes(0); },
@@ -706,6 +732,92 @@ TEST_F(BowIndexFileTest, BlocksAreCheckedOnFirstUse) {
   // Undamaged: VerifyAll passes.
   EXPECT_NO_THROW(
       BowIndex::Open(dir_.Write("good.bin", good_), Orb().vocabulary, Orb().db).VerifyAll());
+}
+
+// A version 2 file (f32 arrays), written here as the placedb of that
+// version wrote it: its header is checked and the index rebuilt, which
+// answers as the version 3 index does; the compact file is a fraction of
+// its size.
+TEST(BowIndex, VersionTwoFilesAreRebuiltTheSame) {
+  TempDir dir;
+  const World& w = Orb();
+  const BowIndex& index = *w.index;
+  const uint32_t K = static_cast<uint32_t>(index.size()), W = w.vocabulary->num_words();
+  std::vector<BowVector> vectors;
+  std::vector<std::vector<uint32_t>> nodes;
+  uint64_t P = 0, F = 0;
+  for (uint32_t i = 0; i < K; ++i) {
+    vectors.push_back(index.KeyframeVector(i));
+    nodes.push_back(index.DirectNodes(i));
+    P += vectors.back().size();
+    F += nodes.back().size();
+  }
+  flat_file::Layout layout(UINT64_MAX);
+  const uint64_t ids = layout.Add(K, 4), vector_offsets = layout.Add(K + 1, 8),
+                 vector_words = layout.Add(P, 4), vector_weights = layout.Add(P, 4),
+                 direct_offsets = layout.Add(K + 1, 8), direct_nodes = layout.Add(F, 4),
+                 word_offsets = layout.Add(W + 1, 8), postings = layout.Add(P, 8);
+  layout.Add(K, 8);
+  layout.Add(W, 8);
+  std::string bytes(layout.end(), '\0');
+  const auto put = [&](uint64_t at, const auto& value) {
+    std::memcpy(&bytes[at], &value, sizeof(value));
+  };
+  std::vector<std::vector<std::pair<uint32_t, float>>> lists(W);
+  uint64_t e = 0, f = 0;
+  for (uint32_t i = 0; i < K; ++i) {
+    put(ids + 4 * i, w.db.keyframe(i).id);
+    put(vector_offsets + 8 * i, e);
+    put(direct_offsets + 8 * i, f);
+    for (size_t j = 0; j < vectors[i].size(); ++j, ++e) {
+      put(vector_words + 4 * e, vectors[i].words[j]);
+      put(vector_weights + 4 * e, vectors[i].weights[j]);
+      lists[vectors[i].words[j]].push_back({i, vectors[i].weights[j]});
+    }
+    for (const uint32_t node : nodes[i]) put(direct_nodes + 4 * f++, node);
+  }
+  put(vector_offsets + 8 * K, e);
+  put(direct_offsets + 8 * K, f);
+  e = 0;
+  for (uint32_t word = 0; word < W; ++word) {
+    put(word_offsets + 8 * word, e);
+    for (const auto& [k, weight] : lists[word]) {
+      put(postings + 8 * e, k);
+      put(postings + 8 * e + 4, weight);
+      ++e;
+    }
+  }
+  put(word_offsets + 8 * W, e);
+  BowIndexFileHeader header{};
+  header.vocabulary_checksum = w.vocabulary->checksum();
+  header.num_keyframes = K;
+  header.direct_level = 2;
+  header.num_words = W;
+  header.num_entries = P;
+  header.num_features = F;
+  header.tables_checksum = 1;  // not read
+  std::memcpy(&bytes[0], &header, sizeof(header));
+  flat_file::Seal(&bytes[0], bytes.size(), kBowIndexMagic, 2);
+  const BowIndex v2 = BowIndex::Open(dir.Write("v2.bin", bytes), w.vocabulary, w.db);
+  EXPECT_EQ(v2.format_version(), kBowIndexFormatVersion);
+  EXPECT_EQ(v2.checksum(), index.checksum());
+  std::printf("version 2: %zu bytes, version 3: %llu bytes\n", bytes.size(),
+              static_cast<unsigned long long>(index.file_bytes()));
+  EXPECT_LT(index.file_bytes() * 2, bytes.size());
+  for (int j = 0; j < kKeyframes; ++j) {
+    const BowVector q = w.Query(j);
+    ExpectSameResults(v2.Query(q, 10), index.Query(q, 10));
+  }
+  // Its header is still checked.
+  header.direct_node_bytes = 1;
+  std::memcpy(&bytes[0], &header, sizeof(header));
+  flat_file::Seal(&bytes[0], bytes.size(), kBowIndexMagic, 2);
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>(
+      [&] { BowIndex::Open(dir.Write("v2b.bin", bytes), w.vocabulary, w.db); }, "reserved"));
+  const auto other = std::make_shared<const Vocabulary>(
+      Vocabulary::Train(Blocks(w.db), SmallVocabulary(2), nullptr, nullptr));
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { BowIndex::Open(dir.Path("v2.bin"), other, w.db); },
+                                          "built with another vocabulary"));
 }
 
 TEST(BowIndex, SurfIndex) {

@@ -43,15 +43,14 @@ void GrowingBowIndex::Append(BowVector words, std::vector<uint32_t> nodes) {
   added_nodes_.push_back(std::move(nodes));
 }
 
-Span<uint32_t> GrowingBowIndex::DirectNodes(uint32_t index) const {
+std::vector<uint32_t> GrowingBowIndex::DirectNodes(uint32_t index) const {
   const uint32_t base = static_cast<uint32_t>(base_.size());
   if (index < base) return base_.DirectNodes(index);
   if (index - base >= added_nodes_.size()) {
     PLACEDB_THROW_INVALID("keyframe index ", index, " is out of range (the index holds ", size(),
                           ")");
   }
-  const std::vector<uint32_t>& nodes = added_nodes_[index - base];
-  return Span<uint32_t>(nodes.data(), nodes.size());
+  return added_nodes_[index - base];
 }
 
 std::vector<BowIndex::Scored> GrowingBowIndex::Query(const BowVector& query, size_t max_results,
@@ -76,9 +75,9 @@ std::vector<BowIndex::Scored> GrowingBowIndex::Query(const BowVector& query, siz
     added_among.assign(split, among->end());
   }
   bool base_stopped = false;
-  std::vector<BowIndex::Scored> out = base_.Query(
-      query, max_results, among != nullptr ? &base_among : nullptr, deadline, &base_stopped,
-      excluded);
+  std::vector<BowIndex::Scored> out =
+      base_.Query(query, max_results, among != nullptr ? &base_among : nullptr, deadline,
+                  &base_stopped, excluded);
   if (base_stopped) {
     if (stopped != nullptr) *stopped = true;
     return out;

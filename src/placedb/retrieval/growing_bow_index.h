@@ -32,7 +32,7 @@ class GrowingBowIndex {
   void Append(BowVector words, std::vector<uint32_t> nodes);
   // The direct-level node of each feature row of keyframe `index` (<
   // size()), as BowIndex::DirectNodes.
-  Span<uint32_t> DirectNodes(uint32_t index) const;
+  std::vector<uint32_t> DirectNodes(uint32_t index) const;
 
   // The best `max_results` keyframes by BowScore with `query`, best first
   // (ties: the lower index), over the stored and the added keyframes; with

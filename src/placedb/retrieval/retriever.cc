@@ -112,7 +112,7 @@ std::vector<BowCandidate> ScoreBowCandidates(
       if (stopped != nullptr) *stopped = true;
       break;
     }
-    const Span<uint32_t> kf = index.DirectNodes(out[i].index);
+    const std::vector<uint32_t> kf = index.DirectNodes(out[i].index);
     out[i].guided = guided_matcher.Count(db.Descriptors(out[i].index), kf.data(), kf.size());
   }
   return out;
