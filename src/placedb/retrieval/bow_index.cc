@@ -221,7 +221,7 @@ inline const uint8_t* ReadCheckedEntries(const uint8_t* p, uint64_t n, const Vis
 // codes decode without a branch or a dependency on the previous code's
 // length, and the stored weight needs no arithmetic: a query reads about a
 // million postings at 100 000 keyframes (measured: varint codes with
-// weights computed from counts made the query's scoring 2.3 times slower).
+// weights computed from counts made the query's scoring twice as slow).
 void PutPostings(const std::vector<uint32_t>& keyframes, const std::vector<float>& weights,
                  std::vector<uint8_t>* out) {
   if (keyframes.empty()) return;

@@ -54,7 +54,7 @@
 // and 5-7 a posting, against 8 and 8 in version 2. The postings keep their
 // weight and fixed-width codes because a query reads about a million of
 // them at 100 000 keyframes: varints and weights computed per posting
-// (measured) made the query's scoring 2.3 times slower.
+// (measured) made the query's scoring twice as slow.
 //
 // Versions 1 and 2 (f32 arrays) are still accepted: their header is checked
 // (vocabulary, database, direct level) and the index rebuilt in memory
