@@ -13,7 +13,10 @@
 //  - per search mode (exhaustive, bow, cluster) the query latency p50 / p99
 //    on one thread, excluding feature extraction (the query's features are
 //    extracted once with Extract, then Query(features) is timed; OpenCV on
-//    one thread too), the mean stage times, and recall@1;
+//    one thread too), the mean stage times, recall@1, and the major page
+//    faults of the queries (pages read from the disk; getrusage of the
+//    query's thread around each query, outside its timer) with the p99 of
+//    the queries that had none;
 //  - for bow, the overshoot of a deadline_ms run (p99 of max(0, elapsed -
 //    deadline));
 //  - the machine's popcount limit: the fastest rate of TwoNearestHamming on
@@ -49,6 +52,7 @@
 #include <fcntl.h>
 #include <fmt/format.h>
 #include <malloc.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -224,6 +228,41 @@ struct Query {
 };
 
 // One search mode over some of the queries.
+// Major page faults of the calling thread so far: pages a query had to
+// read from the disk (the page cache had not got them, or had dropped them).
+long MajorFaults() {
+  rusage usage{};
+  ::getrusage(RUSAGE_THREAD, &usage);
+  return usage.ru_majflt;
+}
+
+// Latency with the pages read from disk counted: the major faults of each
+// query (taken outside its timer), how many queries had any, and the p99 of
+// those that had none.
+struct FaultCount {
+  long faults = 0;
+  int queries_with = 0;
+  std::vector<double> ms_without;
+  void Add(long query_faults, double ms) {
+    faults += query_faults;
+    if (query_faults > 0) {
+      ++queries_with;
+    } else {
+      ms_without.push_back(ms);
+    }
+  }
+  nlohmann::json Json() const {
+    nlohmann::json j = {{"major_faults", faults}, {"queries_with_major_faults", queries_with}};
+    if (!ms_without.empty()) j["p99_ms_without"] = placedb::ComputeLatencyStats(ms_without).p99;
+    return j;
+  }
+  std::string Text() const {
+    return fmt::format("{} major faults in {} queries (p99 of the others {:.2f} ms)", faults,
+                       queries_with,
+                       ms_without.empty() ? 0.0 : placedb::ComputeLatencyStats(ms_without).p99);
+  }
+};
+
 struct ModeRun {
   std::string mode;
   double deadline_ms = 0.0;
@@ -240,6 +279,7 @@ struct ModeRun {
   placedb::StageTimes stages;
   int matched = 0, deadline_reached = 0;
   std::map<std::string, int> searches;
+  FaultCount faults;
 
   // The share of the queries `among` (those this mode ran) answered right.
   static double Recall(const std::map<size_t, bool>& correct, const std::vector<size_t>& among) {
@@ -275,11 +315,15 @@ ModeRun RunMode(const placedb::PlaceDatabase& db, const std::vector<Query>& quer
   const auto query = [&](const Query& q) {
     placedb::QueryOptions o = options;
     if (o.retrieval.method == placedb::RetrievalMethod::kCluster) o.prior.keyframe_id = q.prior;
+    const long faults_before = MajorFaults();
     placedb::Timer t;
     placedb::QueryResult r = db.Query(q.features, o);
-    return std::make_pair(t.ElapsedMs(), std::move(r));
+    const double ms = t.ElapsedMs();
+    run.faults.Add(MajorFaults() - faults_before, ms);
+    return std::make_pair(ms, std::move(r));
   };
   query(queries[which.front()]);  // warm-up, not counted
+  run.faults = FaultCount();
   for (const size_t i : which) {
     const auto [ms, r] = query(queries[i]);
     run.ms.push_back(ms);
@@ -776,6 +820,7 @@ int main(int argc, char** argv) {
             placedb::AugmentOptions more = query_aug;
             more.seed = kQuerySeed + 1;
             std::vector<double> ms;
+            FaultCount faults;
             int correct = 0;
             double extract_s = 0.0;
             for (int i = 0; i < memory_queries; ++i) {
@@ -785,9 +830,11 @@ int main(int argc, char** argv) {
               const placedb::FeatureSet f = session.Extract(
                   placedb::Augment(placedb::LoadFrameImage(frames[truth - 1]), i + 1, more));
               extract_s += te.ElapsedSeconds();
+              const long faults_before = MajorFaults();
               placedb::Timer t;
               const placedb::QueryResult r = session.Query(f, options);
               ms.push_back(t.ElapsedMs());
+              faults.Add(MajorFaults() - faults_before, ms.back());
               correct += !r.ranked.empty() && r.ranked.front().keyframe_id == truth;
               if ((i + 1) % 1000 == 0) {
                 const Resident now = ResidentNow();
@@ -807,10 +854,10 @@ int main(int argc, char** argv) {
                 "  a new process and session (resident limit {} MiB), {} bow queries: resident "
                 "+{:.0f} MiB private, +{:.0f} "
                 "MiB file-backed over the process before its open (the process: {:.0f} + {:.0f} "
-                "MiB); p50 {:.2f} ms p99 {:.2f} ms recall@1 {:.3f}\n",
+                "MiB); p50 {:.2f} ms p99 {:.2f} ms recall@1 {:.3f}; {}\n",
                 limit, memory_queries, after.anon - before_session.anon,
                 after.file - before_session.file, after.anon, after.file, s.p50, s.p99,
-                static_cast<double>(correct) / memory_queries);
+                static_cast<double>(correct) / memory_queries, faults.Text());
             return nlohmann::json{
                 {"queries", memory_queries},
                 {"resident_limit_mb", limit},
@@ -820,6 +867,7 @@ int main(int argc, char** argv) {
                 {"resident_by_file_mib", by_file},
                 {"process_resident", ResidentJson(after)},
                 {"recall_at_1", static_cast<double>(correct) / memory_queries},
+                {"faults", faults.Json()},
                 {"extract_seconds", extract_s}};
           }));
       }
@@ -914,6 +962,7 @@ int main(int argc, char** argv) {
             {"whole_image_candidates", r.whole_image_candidates},
             {"queries", nq},
             {"latency_ms", StatsJson(s)},
+            {"faults", r.faults.Json()},
             {"recall_at_1", recall},
             {"place_recall_at_1", place},
             {"recall_at_1_on_exhaustive_queries", ModeRun::Recall(r.correct, subset)},
@@ -959,9 +1008,9 @@ int main(int argc, char** argv) {
         fmt::print(
             "  {:<20} {:>4} queries  p50 {:7.2f} ms  p99 {:7.2f} ms  recall@1 {:.3f}  "
             "place {:.3f}  examined {:.1f} keyframes  retrieve / match / verify {:.2f} / "
-            "{:.2f} / {:.2f} ms  {}  [{} ]\n",
+            "{:.2f} / {:.2f} ms  {}  [{} ]  {}\n",
             name, nq, s.p50, s.p99, recall, place, r.examined / nq, r.stages.retrieve_ms / nq,
-            r.stages.match_ms / nq, r.stages.verify_ms / nq, vs, searches);
+            r.stages.match_ms / nq, r.stages.verify_ms / nq, vs, searches, r.faults.Text());
         table.push_back(
             fmt::format("{:>7} {:<20} {:>5} {:>8.2f} {:>8.2f} {:>8.3f} {:>6.3f} {:>9.1f} "
                         "{:>8.1f} {:>8.0f} {:>8.1f} {:>8.0f}",

@@ -109,6 +109,18 @@ def ros_table(r):
     return "\n".join(rows) + "\n\n" + note
 
 
+def FaultText(run):
+    """The pages a run's queries read from disk (major page faults), when the bench counted them."""
+    f = run.get("faults")
+    if not f:
+        return ""
+    text = (f"; {f['major_faults']} major page faults (pages read from disk) in "
+            f"{f['queries_with_major_faults']} of its queries")
+    if f["queries_with_major_faults"] > 0 and "p99_ms_without" in f:
+        text += f", p99 of the others {f['p99_ms_without']:.2f} ms"
+    return text
+
+
 def scale_table(j):
     rows = ["| keyframes | search | queries | p50 ms | p99 ms | recall@1 | place recall@1 | keyframes examined | "
             "vs exhaustive |", "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
@@ -154,6 +166,9 @@ def scale_table(j):
                            f"{100 * (m['recall_at_1'] - b['recall_at_1']):+.1f} points, p50 "
                            f"{m['latency_ms']['p50'] - b['latency_ms']['p50']:+.2f} ms, p99 "
                            f"{m['latency_ms']['p99'] - b['latency_ms']['p99']:+.2f} ms")
+            if m.get("faults", {}).get("major_faults", 0) > 0:
+                vs += FaultText(m)
+            vs = vs.lstrip("; ")
             rows.append(f"| {s['keyframes']} | {name} | {m['queries']} | {m['latency_ms']['p50']:.2f} | "
                         f"{m['latency_ms']['p99']:.2f} | {m['recall_at_1']:.3f} | {m['place_recall_at_1']:.3f} | "
                         f"{m['examined_mean']:.0f} | {vs} |")
@@ -191,7 +206,7 @@ def scale_table(j):
                  f"**{r['private_mib']:.0f} MiB private + {r['file_mib']:.0f} MiB file-backed** resident memory"
                  + (f" (mapped and resident at the end, MiB: {files})" if files else "") +
                  f"; their latency p50 {m['latency_ms']['p50']:.2f} ms, p99 {m['latency_ms']['p99']:.2f} ms, "
-                 f"recall@1 {m['recall_at_1']:.3f}."]
+                 f"recall@1 {m['recall_at_1']:.3f}" + FaultText(m) + "."]
     for keyframes, p in partition_runs:
         w = p["workers"]
         files = max(x["file_mib"] for x in w)

@@ -889,6 +889,17 @@ BowIndex BowIndex::FromImage(flat_file::Image image, const std::string& shown,
   return index;
 }
 
+void BowIndex::CheckInBackground(const std::atomic<bool>& stop) const {
+  const Arrays a = MakeArrays();
+  const uint32_t num_words = vocabulary_->num_words();
+  for (uint32_t w = 0; w < num_words && !stop.load(std::memory_order_relaxed); ++w) {
+    std::atomic<uint8_t>& checked = lazy_->word_checked[w];
+    if (!checked.load(std::memory_order_acquire) &&
+        a.WordBlockProblem(w, word_sums_, nullptr).empty())
+      checked.store(1, std::memory_order_release);
+  }
+}
+
 void BowIndex::VerifyAll() const {
   CheckAllBlocks(MakeArrays(), word_offsets_[vocabulary_->num_words()], keyframe_sums_, word_sums_,
                  shown_, [&] { flat_file::CheckPayloadChecksum(image_, shown_); });

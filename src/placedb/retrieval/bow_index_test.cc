@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <functional>
@@ -11,6 +12,7 @@
 #include <optional>
 #include <random>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "placedb/match/ratio_matcher.h"
@@ -742,6 +744,53 @@ TEST_F(BowIndexFileTest, BlocksAreCheckedOnFirstUse) {
   // Undamaged: VerifyAll passes.
   EXPECT_NO_THROW(
       BowIndex::Open(dir_.Write("good.bin", good_), Orb().vocabulary, Orb().db).VerifyAll());
+}
+
+// The background check (what a session's prefetch thread runs) checks every
+// word's postings while queries run, and leaves a damaged one unchecked: the
+// query that reads it still reports it, as without the check.
+TEST_F(BowIndexFileTest, BackgroundCheckLeavesDamageToTheQuery) {
+  const uint32_t word = WordWithPostings();
+  std::string bytes = good_;
+  bytes[postings_ + WordByte(word) + 1] ^= 0x02;  // a keyframe; not resealed
+  const std::string path = dir_.Write("background.bin", bytes);
+  const BowIndex index = BowIndex::Open(path, Orb().vocabulary, Orb().db);
+  BowVector damaged;
+  damaged.words = {word};
+  damaged.weights = {1.0f};
+  const std::atomic<bool> stop{false};
+  std::thread checker([&] { index.CheckInBackground(stop); });
+  // Queries of other words meanwhile, on this thread.
+  for (uint32_t w = 0; w < 50; ++w) {
+    if (w == word) continue;
+    BowVector other;
+    other.words = {w};
+    other.weights = {1.0f};
+    EXPECT_NO_THROW(index.Query(other, 5)) << w;
+  }
+  checker.join();
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>(
+      [&] { index.Query(damaged, 5); },
+      {path, "the postings of word " + std::to_string(word), "fail their block checksum"}));
+  // An undamaged index checked in the background answers as one checked
+  // by its queries; a stopped check checks nothing.
+  const BowIndex good = BowIndex::Open(dir_.Write("good.bin", good_), Orb().vocabulary, Orb().db);
+  good.CheckInBackground(stop);
+  const BowIndex fresh = BowIndex::Open(dir_.Path("good.bin"), Orb().vocabulary, Orb().db);
+  for (size_t k = 0; k < Orb().db.size(); k += 7) {
+    const BowVector q = fresh.KeyframeVector(static_cast<uint32_t>(k));
+    const auto a = good.Query(q, 5), b = fresh.Query(q, 5);
+    ASSERT_EQ(a.size(), b.size());
+    for (size_t i = 0; i < a.size(); ++i) {
+      EXPECT_EQ(a[i].index, b[i].index);
+      EXPECT_EQ(a[i].score, b[i].score);
+    }
+  }
+  const std::atomic<bool> stopped{true};
+  const BowIndex halted = BowIndex::Open(path, Orb().vocabulary, Orb().db);
+  halted.CheckInBackground(stopped);
+  EXPECT_TRUE(
+      ThrowsWith<CorruptDatabase>([&] { halted.Query(damaged, 5); }, "fail their block checksum"));
 }
 
 // A version 2 file (f32 arrays), written here as the placedb of that

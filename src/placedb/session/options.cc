@@ -170,7 +170,8 @@ const OptionTable<OpenOptions>& OpenOptions::Table() {
            "open only the keyframe table (ids, poses, sources): no queries, no changes",
            BoolFlag::kSwitch, kPython);
     t.Bool("prefetch", PLACEDB_MEMBER(O, prefetch),
-           "read the database files into the page cache in the background after the open",
+           "read the database files into the page cache in the background after the open, then "
+           "check the index's posting lists",
            BoolFlag::kNegatable, kCallers);
     t.Number("resident_limit_mb", PLACEDB_MEMBER(O, resident_limit_mb),
              OptionRange::Closed(0, 1048576),

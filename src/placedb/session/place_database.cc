@@ -95,13 +95,20 @@ struct PlaceDatabase::Impl {
 };
 
 void PlaceDatabase::Impl::StartPrefetch() {
-  std::vector<std::shared_ptr<const MappedFile>> files;
-  // The index first: every query reads postings all over it.
-  if (bow && bow->base().mapped_file()) files.push_back(bow->base().mapped_file());
-  if (db.mapped_file()) files.push_back(db.mapped_file());
-  if (files.empty()) return;
-  prefetcher = std::thread([files = std::move(files), this] {
-    for (const auto& f : files) f->Prefetch(stop_prefetch);
+  // The index first (every query reads postings all over it), and the
+  // checks the first queries would make of its posting lists, on a copy of
+  // the index (it shares the file and what is checked, and stays valid when
+  // Save replaces the session's index); then the keyframe file.
+  std::optional<BowIndex> index;
+  if (bow && bow->base().mapped_file()) index.emplace(bow->base());
+  std::shared_ptr<const MappedFile> keyframes = db.mapped_file();
+  if (!index && !keyframes) return;
+  prefetcher = std::thread([index = std::move(index), keyframes = std::move(keyframes), this] {
+    if (index) {
+      index->mapped_file()->Prefetch(stop_prefetch);
+      index->CheckInBackground(stop_prefetch);
+    }
+    if (keyframes) keyframes->Prefetch(stop_prefetch);
   });
 }
 
