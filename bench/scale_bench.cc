@@ -227,7 +227,6 @@ struct Query {
   placedb::FeatureSet features;
 };
 
-// One search mode over some of the queries.
 // Major page faults of the calling thread so far: pages a query had to
 // read from the disk (the page cache had not got them, or had dropped them).
 long MajorFaults() {
@@ -263,6 +262,7 @@ struct FaultCount {
   }
 };
 
+// One search mode over some of the queries.
 struct ModeRun {
   std::string mode;
   double deadline_ms = 0.0;

@@ -489,14 +489,20 @@ BowIndex::Arrays BowIndex::MakeArrays() const {
 
 namespace {
 
-// Marks a block checked once `problem` finds nothing wrong with it (else
-// CorruptDatabase "<shown>: <problem>").
+// Marks a block checked once `problem` finds nothing wrong with it; what
+// it found ("" when nothing, or when the block was checked already).
+template <typename Problem>
+std::string CheckAndMark(std::atomic<uint8_t>* checked, const Problem& problem) {
+  if (checked->load(std::memory_order_acquire)) return "";
+  std::string bad = problem();
+  if (bad.empty()) checked->store(1, std::memory_order_release);
+  return bad;
+}
+// The same, throwing CorruptDatabase "<shown>: <problem>" for damage.
 template <typename Problem>
 void CheckOnce(std::atomic<uint8_t>* checked, const std::string& shown, const Problem& problem) {
-  if (checked->load(std::memory_order_acquire)) return;
-  const std::string bad = problem();
+  const std::string bad = CheckAndMark(checked, problem);
   if (!bad.empty()) PLACEDB_THROW_CORRUPT(shown, ": ", bad);
-  checked->store(1, std::memory_order_release);
 }
 
 }  // namespace
@@ -892,12 +898,9 @@ BowIndex BowIndex::FromImage(flat_file::Image image, const std::string& shown,
 void BowIndex::CheckInBackground(const std::atomic<bool>& stop) const {
   const Arrays a = MakeArrays();
   const uint32_t num_words = vocabulary_->num_words();
-  for (uint32_t w = 0; w < num_words && !stop.load(std::memory_order_relaxed); ++w) {
-    std::atomic<uint8_t>& checked = lazy_->word_checked[w];
-    if (!checked.load(std::memory_order_acquire) &&
-        a.WordBlockProblem(w, word_sums_, nullptr).empty())
-      checked.store(1, std::memory_order_release);
-  }
+  for (uint32_t w = 0; w < num_words && !stop.load(std::memory_order_relaxed); ++w)
+    CheckAndMark(&lazy_->word_checked[w],
+                 [&] { return a.WordBlockProblem(w, word_sums_, nullptr); });
 }
 
 void BowIndex::VerifyAll() const {
