@@ -46,8 +46,15 @@
 // keyframes it runs on --exhaustive-queries of the queries (spread evenly),
 // and every mode's recall is also given on that subset.
 //
-// Databases are written under --out (scale_<n>/) and reused when their
-// manifest shows the same settings, source description and counts.
+// At --compare-stored-at keyframes the bench also builds databases that keep
+// fewer features per keyframe (--compare-stored: BuildOptions::
+// stored_features, spread over the image; queries keep all) and runs bow on
+// them with the same queries: what disk and memory they save against the
+// recall they lose.
+//
+// Databases are written under --out (scale_<n>/, scale_<n>_stored<b>/) and
+// reused when their manifest shows the same settings, source description
+// and counts.
 // Prints a table and writes JSON (--json) for the README's table.
 #include <fcntl.h>
 #include <fmt/format.h>
@@ -563,7 +570,11 @@ bool Reusable(const fs::path& dir, const nlohmann::json& settings, const std::st
   if (!in) return false;
   try {
     const nlohmann::json m = nlohmann::json::parse(in);
-    return m.at("settings") == settings && m.at("source") == source &&
+    // Through the options, so that a manifest written before a setting
+    // existed (read as its documented absent value) still matches.
+    const nlohmann::json stored =
+        placedb::BuildSettingsToJson(placedb::BuildOptionsFromManifest(m, dir.string()));
+    return stored == settings && m.at("source") == source &&
            m.at("counts").at("keyframes") == keyframes && m.at("counts").at("frames") == keyframes;
   } catch (const std::exception&) {
     return false;
@@ -582,7 +593,9 @@ int main(int argc, char** argv) {
   std::vector<int> compare_guided = {0, 10};
   double deadline_ms = 2.0, cluster_radius = 0.5, whole_image_weight = 50.0;
   int whole_image_candidates = 2, memory_queries = 10000, partitions = 4;
-  int resident_limit_mb = 768;
+  int resident_limit_mb = 768, stored_features = 0;
+  std::vector<int> compare_stored = {250, 200};
+  size_t compare_stored_at = 10000;
   std::string out = "out/bench/scale", json_path, data = PLACEDB_DATA_DIR;
   app.add_option("--sizes", sizes, "database sizes, keyframes")
       ->delimiter(',')
@@ -648,6 +661,20 @@ int main(int argc, char** argv) {
   app.add_option("--features", features, "ORB features per frame")
       ->check(CLI::Range(1, 100000))
       ->capture_default_str();
+  app.add_option("--stored-features", stored_features,
+                 "most features a keyframe keeps, spread over its image (BuildOptions::"
+                 "stored_features; 0: all); queries keep every feature")
+      ->check(CLI::Range(0, 100000))
+      ->capture_default_str();
+  app.add_option("--compare-stored", compare_stored,
+                 "at --compare-stored-at keyframes, databases keeping these --stored-features too "
+                 "(bow runs only): disk and memory against recall")
+      ->delimiter(',')
+      ->check(CLI::Range(1, 100000))
+      ->capture_default_str();
+  app.add_option("--compare-stored-at", compare_stored_at,
+                 "the size of the --compare-stored databases (none when it is not one of --sizes)")
+      ->capture_default_str();
   app.add_option("--fast-threshold", fast_threshold,
                  "ORB's FAST threshold (the library's default 20 leaves about 210 features on "
                  "these 320 x 240 views, 5 about 390)")
@@ -675,6 +702,8 @@ int main(int argc, char** argv) {
                               {"sample_images", sources.size()},
                               {"features_per_frame", features},
                               {"fast_threshold", fast_threshold},
+                              {"stored_features", stored_features},
+                              {"compare_stored", compare_stored},
                               {"queries", num_queries},
                               {"exhaustive_queries_above_1000", exhaustive_queries},
                               {"hamming_kernel", placedb::HammingKernelName()},
@@ -688,13 +717,32 @@ int main(int argc, char** argv) {
                               {"query_augment", placedb::AugmentOptionsToJson(query_aug)},
                               {"sizes", nlohmann::json::array()}};
     std::vector<std::string> table;
+    // Each size with --stored-features (the main runs), and after the size
+    // --compare-stored-at the same keyframes keeping fewer features (bow runs
+    // only).
+    struct Config {
+      size_t n;
+      int stored;
+      bool main;
+    };
+    std::vector<Config> configs;
     for (const size_t n : sizes) {
+      configs.push_back({n, stored_features, true});
+      if (n != compare_stored_at) continue;
+      for (const int b : compare_stored)
+        if (b != stored_features) configs.push_back({n, b, false});
+    }
+    const size_t largest = *std::max_element(sizes.begin(), sizes.end());
+    const std::vector<std::string> bow_only = {"bow"};
+    for (const Config& config : configs) {
+      const size_t n = config.n;
       // Build, or reuse the database of an earlier run with the same settings.
       const std::vector<placedb::Frame> frames =
           placedb::AugmentedFrames(sources, n, kKeyframeSeed, keyframe_aug);
       placedb::BuildOptions build;
       build.features.orb.max_features = features;
       build.features.orb.fast_threshold = fast_threshold;
+      build.stored_features = config.stored;
       build.store_images = false;
       build.index = placedb::IndexKind::kBow;
       build.threads = threads_build;
@@ -702,8 +750,10 @@ int main(int argc, char** argv) {
       const std::string source = fmt::format(
           "scale_bench: {} augmentations (seed {}) of the {} sample images under {}; {}", n,
           kKeyframeSeed, sources.size(), data, placedb::AugmentOptionsToJson(keyframe_aug).dump());
-      const fs::path dir = fs::path(out) / fmt::format("scale_{}", n);
-      const fs::path build_log = fs::path(out) / fmt::format("scale_{}.build.json", n);
+      const std::string dir_name = config.main ? fmt::format("scale_{}", n)
+                                               : fmt::format("scale_{}_stored{}", n, config.stored);
+      const fs::path dir = fs::path(out) / dir_name;
+      const fs::path build_log = fs::path(out) / (dir_name + ".build.json");
       const bool reused = Reusable(dir, placedb::BuildSettingsToJson(build), source, n);
       double build_seconds = 0.0;
       if (reused) {
@@ -769,9 +819,15 @@ int main(int argc, char** argv) {
           n > 1000 ? Spread(queries.size(), exhaustive_queries) : all;
 
       std::vector<ModeRun> runs;
-      for (const std::string& m : modes) {
+      const std::vector<std::string>& config_modes =
+          config.main ? modes
+                      : (std::find(modes.begin(), modes.end(), "bow") != modes.end()
+                             ? bow_only
+                             : std::vector<std::string>{});
+      for (const std::string& m : config_modes) {
         runs.push_back(RunMode(db, queries, m == "exhaustive" ? subset : all, m, 0.0, num_sources,
                                bow_candidates, guided_candidates));
+        if (!config.main) continue;
         if (m == "bow") {
           // The same with other numbers matched in full after guided
           // ranking (0: none, every bow candidate matched in full).
@@ -799,7 +855,7 @@ int main(int argc, char** argv) {
       // above read every page of the first one), bow queries on fresh views
       // spread over the database, and the memory that session added.
       nlohmann::json memory_runs = nlohmann::json::array();
-      if (memory_queries > 0 && n == *std::max_element(sizes.begin(), sizes.end()) &&
+      if (memory_queries > 0 && config.main && n == largest &&
           std::find(modes.begin(), modes.end(), "bow") != modes.end()) {
         // In a process of its own (forked: it starts with none of this
         // process's mapped pages resident), as a robot's would be: the
@@ -873,7 +929,7 @@ int main(int argc, char** argv) {
       }
       // The map split over partition processes (bow, the default options).
       nlohmann::json partition_run;
-      if (partitions > 0 && n == *std::max_element(sizes.begin(), sizes.end()) &&
+      if (partitions > 0 && config.main && n == largest &&
           std::find(modes.begin(), modes.end(), "bow") != modes.end()) {
         placedb::QueryOptions options;
         options.retrieval.method = placedb::RetrievalMethod::kBow;
@@ -911,6 +967,7 @@ int main(int argc, char** argv) {
           {"keyframes", db.size()},
           {"features", db.num_features()},
           {"features_per_keyframe", static_cast<double>(db.num_features()) / db.size()},
+          {"stored_features", config.stored},
           {"query_features_mean", query_features},
           {"build_seconds", build_seconds},
           {"reused", reused},
@@ -954,6 +1011,7 @@ int main(int argc, char** argv) {
         }
         if (r.deadline_ms > 0) name += fmt::format(", deadline {:g} ms", r.deadline_ms);
         if (r.whole_image_weight > 0) name += " + whole image";
+        if (!config.main) name += fmt::format(", {} stored", config.stored);
         nlohmann::json m = {
             {"mode", r.mode},
             {"deadline_ms", r.deadline_ms},

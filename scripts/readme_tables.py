@@ -121,6 +121,12 @@ def FaultText(run):
     return text
 
 
+def SizeLabel(s):
+    """A size's keyframes, and the features each keeps when the database keeps fewer than it extracts."""
+    stored = s.get("stored_features", 0)
+    return f"{s['keyframes']}, {stored} stored" if stored > 0 else f"{s['keyframes']}"
+
+
 def scale_table(j):
     rows = ["| keyframes | search | queries | p50 ms | p99 ms | recall@1 | place recall@1 | keyframes examined | "
             "vs exhaustive |", "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
@@ -169,7 +175,7 @@ def scale_table(j):
             if m.get("faults", {}).get("major_faults", 0) > 0:
                 vs += FaultText(m)
             vs = vs.lstrip("; ")
-            rows.append(f"| {s['keyframes']} | {name} | {m['queries']} | {m['latency_ms']['p50']:.2f} | "
+            rows.append(f"| {SizeLabel(s)} | {name} | {m['queries']} | {m['latency_ms']['p50']:.2f} | "
                         f"{m['latency_ms']['p99']:.2f} | {m['recall_at_1']:.3f} | {m['place_recall_at_1']:.3f} | "
                         f"{m['examined_mean']:.0f} | {vs} |")
     rows += ["", "| keyframes | features (per keyframe) | build s | database MB | open ms, warm (cold) | "
@@ -187,7 +193,7 @@ def scale_table(j):
         else:
             after_open, after_runs = f"+{s['rss_increase_mib']:.0f} (RSS)", ""
         verify = f"{s['verify_ms'] / 1000:.1f}" if "verify_ms" in s else ""
-        rows.append(f"| {s['keyframes']} | {s['features']} ({s['features_per_keyframe']:.0f}) | "
+        rows.append(f"| {SizeLabel(s)} | {s['features']} ({s['features_per_keyframe']:.0f}) | "
                     f"{s['build_seconds']:.0f} | {s['database_bytes'] / 1e6:.1f} | {s['open_ms']:.1f}{first} | "
                     f"{after_open} | {after_runs} | {verify} | {s['popcount_limit_ms']:.2f} |")
         for m in s.get("memory_runs", []):
@@ -234,6 +240,10 @@ def scale_table(j):
             "Popcount limit: "
             f"{j['ns_per_distance']:.3f} ns per distance ({j['hamming_kernel']} kernel, in cache) × query features × "
             "database features.")
+    if j.get("compare_stored"):
+        note += (" \"N stored\": a database of the same keyframes keeping at most N features per keyframe "
+                 "(`stored_features`, the strongest spread over the image), with the same queries, which keep "
+                 "all their features; bow runs only.")
     return "\n".join(rows) + "\n\n" + note
 
 

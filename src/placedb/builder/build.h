@@ -39,6 +39,13 @@ struct BuildOptions {
   // Stored image area divisor: 1, 4 or 16. Default 1 (full size).
   int resize = 1;
   ExtractorOptions features;
+  // Most features a keyframe keeps of those extracted (0: all), chosen
+  // spread over its stored image (feature/spread.h: every cell of an 8 x 6
+  // grid's strongest before any cell's second). Queries keep every feature
+  // extraction finds. Disk, memory and scoring time shrink with it, recall
+  // can too (README, "Scale": measured on the scale benchmark). Range
+  // [0, 100000]. Default 0.
+  int stored_features = 0;
   // Extract features on the whole (resized) frame and keep those inside the
   // crop, instead of on the stored crop alone. Descriptors near the crop's
   // border then see the real pixels around them, where on the crop alone ORB

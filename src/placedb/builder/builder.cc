@@ -16,6 +16,7 @@
 #include <mutex>
 #include <opencv2/imgcodecs.hpp>
 
+#include "placedb/feature/spread.h"
 #include "placedb/feature/whole_image.h"
 #include "placedb/image/resize.h"
 #include "placedb/util/check.h"
@@ -114,6 +115,7 @@ ProcessedFrame ProcessFrame(const Frame& frame, const cv::Mat& image, const Buil
   k.stored_size = out.stored_image.size();
   k.scale = cropped.cols > 0 ? static_cast<double>(k.stored_size.width) / cropped.cols : 1.0;
   ExtractStored(image, options, extractor, &out);
+  KeepSpread(&out.features, static_cast<size_t>(options.stored_features), k.stored_size);
   // The whole-image row is the whole frame's (as given: before crop and
   // resize), also for a cropped keyframe: what a query's Extract gives.
   // The extractor computed it on the stored image already when that is
@@ -128,8 +130,7 @@ ProcessedFrame ProcessFrame(const Frame& frame, const cv::Mat& image, const Buil
   return out;
 }
 
-std::string BuildReportJson(const BuildReport& report, const std::string& database,
-                            int indent) {
+std::string BuildReportJson(const BuildReport& report, const std::string& database, int indent) {
   return DumpJson(BuildReportToJson(report, database), indent);
 }
 

@@ -11,8 +11,8 @@
 #include "placedb/feature/extractor.h"
 #include "placedb/image/feature_rich_crop.h"
 #include "placedb/retrieval/bow_index.h"
-#include "placedb/storage/database.h"
 #include "placedb/retrieval/vocabulary.h"
+#include "placedb/storage/database.h"
 #include "placedb/util/option_table.h"
 
 namespace placedb {

@@ -299,8 +299,9 @@ TEST(BuilderTest, EverySettingRoundTripsAtItsRangeLimits) {
   nlohmann::json manifest;
   manifest["settings"] = BuildSettingsToJson(hi);
   manifest["settings"]["vocabulary"]["seed"] = -1;
-  EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { BuildOptionsFromManifest(manifest, "m"); },
-                                          {"settings.vocabulary.seed", "vocabulary_seed must be in [0, 2^64) (got -1)"}));
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>(
+      [&] { BuildOptionsFromManifest(manifest, "m"); },
+      {"settings.vocabulary.seed", "vocabulary_seed must be in [0, 2^64) (got -1)"}));
   manifest["settings"]["vocabulary"]["seed"] = 1.5;
   EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { BuildOptionsFromManifest(manifest, "m"); },
                                           {"settings.vocabulary.seed is not a whole number"}));
@@ -319,9 +320,8 @@ TEST(BuilderTest, MalformedManifestSettingsAreRejected) {
                                        {"db/manifest.json", part});
   };
   EXPECT_TRUE(fails([](nlohmann::json& m) { m.erase("settings"); }, "settings is missing"));
-  EXPECT_TRUE(
-      fails([](nlohmann::json& m) { m["settings"]["features"].erase("orb"); },
-            "settings.features.orb.max_features is missing"));
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m["settings"]["features"].erase("orb"); },
+                    "settings.features.orb.max_features is missing"));
   EXPECT_TRUE(fails([](nlohmann::json& m) { m["settings"]["crop_options"].erase("padding"); },
                     "settings.crop_options.padding is missing"));
   // A setting this placedb does not know cannot be honoured: refused, named.
@@ -329,10 +329,10 @@ TEST(BuilderTest, MalformedManifestSettingsAreRejected) {
                     "settings.features.orb.wta_k is not a setting this placedb knows"));
   EXPECT_TRUE(fails([](nlohmann::json& m) { m["settings"]["gamma"] = 1.0; },
                     "settings.gamma is not a setting this placedb knows"));
-  EXPECT_TRUE(
-      fails([](nlohmann::json& m) { m["settings"]["resize"] = true; }, "settings.resize is not a whole number"));
-  EXPECT_TRUE(
-      fails([](nlohmann::json& m) { m["settings"]["resize"] = 3; }, "resize must be 1, 4 or 16 (got 3)"));
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m["settings"]["resize"] = true; },
+                    "settings.resize is not a whole number"));
+  EXPECT_TRUE(fails([](nlohmann::json& m) { m["settings"]["resize"] = 3; },
+                    "resize must be 1, 4 or 16 (got 3)"));
   EXPECT_TRUE(fails(
       [](nlohmann::json& m) { m["settings"]["features"]["orb"]["num_levels"] = -2147483649LL; },
       "orb_levels must be in [1, 32] (got -2147483649)"));
@@ -486,6 +486,51 @@ TEST(BuilderTest, WholeImageChannel) {
   EXPECT_EQ(WholeImageDims(read.features), 0);
 }
 
+TEST(BuilderTest, StoredFeaturesKeepASubsetOfEachKeyframes) {
+  TempDir tmp;
+  const std::vector<Frame> frames = ListImageFolder(kImages, 3, 6);
+  for (const CropMode crop : {CropMode::kNone, CropMode::kChroma}) {
+    BuildOptions all = SmallBuild();
+    all.crop = crop;
+    BuildOptions budget = all;
+    budget.stored_features = 20;
+    const std::string tag = CropModeName(crop);
+    BuildDatabase(frames, all, tmp.Path("all_" + tag), "rtabmap 3..6");
+    BuildDatabase(frames, budget, tmp.Path("budget_" + tag), "rtabmap 3..6");
+    const Database full = Database::Load(tmp.Path("all_" + tag));
+    const Database kept = Database::Load(tmp.Path("budget_" + tag));
+    ASSERT_EQ(full.size(), kept.size());
+    size_t bitten = 0;
+    for (size_t i = 0; i < full.size(); ++i) {
+      ASSERT_EQ(kept.FeatureCount(i), std::min<size_t>(full.FeatureCount(i), 20)) << tag << i;
+      bitten += full.FeatureCount(i) > 20;
+      // Every kept feature is one of the full set's, in the same order.
+      const FeatureSet a = full.Features(i), b = kept.Features(i);
+      size_t j = 0;
+      for (size_t k = 0; k < b.size(); ++k) {
+        while (j < a.size() &&
+               (a.keypoints[j].pt != b.keypoints[k].pt ||
+                cv::norm(a.descriptors.row(static_cast<int>(j)),
+                         b.descriptors.row(static_cast<int>(k)), cv::NORM_HAMMING) != 0))
+          ++j;
+        ASSERT_LT(j, a.size()) << tag << " keyframe " << i << " feature " << k;
+        ++j;
+      }
+    }
+    EXPECT_EQ(bitten, full.size()) << tag;  // the budget was smaller than each keyframe's features
+    EXPECT_EQ(BuildOptionsFromManifest(kept.info(), "db").stored_features, 20);
+    // A manifest written before the setting reads as keeping every feature.
+    nlohmann::json old = kept.info();
+    old["settings"].erase("stored_features");
+    EXPECT_EQ(BuildOptionsFromManifest(old, "db").stored_features, 0);
+  }
+  BuildOptions bad = SmallBuild();
+  bad.stored_features = -1;
+  EXPECT_NE(bad.Check(), "");
+  bad.stored_features = 100001;
+  EXPECT_NE(bad.Check(), "");
+}
+
 TEST(BuilderTest, ExistingDatabaseNeedsOverwrite) {
   TempDir tmp;
   const std::string out = tmp.Path("db");
@@ -553,8 +598,9 @@ TEST(BuilderTest, RefusesNonDatabaseOutputs) {
       [&] { BuildDatabase({}, options, tmp.Path("empty_db"), "x"); }, "no frames"));
   BuildOptions bad = options;
   bad.resize = 2;
-  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
-      [&] { BuildDatabase(frames, bad, tmp.Path("bad_db"), "x"); }, "resize must be 1, 4 or 16 (got 2)"));
+  EXPECT_TRUE(
+      ThrowsWith<InvalidArgument>([&] { BuildDatabase(frames, bad, tmp.Path("bad_db"), "x"); },
+                                  "resize must be 1, 4 or 16 (got 2)"));
   EXPECT_FALSE(fs::exists(tmp.Path("bad_db")));
 
   // An existing empty directory is fine.

@@ -14,6 +14,9 @@ const OptionTable<BuildOptions>& BuildOptions::Table() {
     using O = BuildOptions;
     OptionTable<O> t("build settings");
     t.Nest(PLACEDB_MEMBER(O, features), ExtractorOptions::Table());
+    t.Number("stored_features", PLACEDB_MEMBER(O, stored_features), OptionRange::Closed(0, 100000),
+             "most features a keyframe keeps, spread over its image (0: all; queries keep all)")
+        .absent = int64_t{0};  // manifests written before the budget
     t.Choice("crop", PLACEDB_MEMBER(O, crop), {CropMode::kNone, CropMode::kChroma}, ParseCropMode,
              CropModeName, "none, or chroma: the paper's feature-rich crop");
     t.Nest(PLACEDB_MEMBER(O, crop_options), CropOptions::Table());
@@ -28,8 +31,8 @@ const OptionTable<BuildOptions>& BuildOptions::Table() {
         .flag = "--no-images";
     t.Number("png_compression", PLACEDB_MEMBER(O, png_compression), OptionRange::Closed(0, 9),
              "PNG level of the stored images");
-    t.Choice("index", PLACEDB_MEMBER(O, index), {IndexKind::kNone, IndexKind::kBow},
-             ParseIndexKind, IndexKindName,
+    t.Choice("index", PLACEDB_MEMBER(O, index), {IndexKind::kNone, IndexKind::kBow}, ParseIndexKind,
+             IndexKindName,
              "retrieval index: none, or bow (a vocabulary and an inverted file, for search bow)")
         .absent = std::string("none");  // manifests written before bag-of-words indexes
     t.Nest(PLACEDB_MEMBER(O, vocabulary), VocabularyOptions::Table());
