@@ -43,7 +43,7 @@ struct BuildOptions {
   // spread over its stored image (feature/spread.h: every cell of an 8 x 6
   // grid's strongest before any cell's second). Queries keep every feature
   // extraction finds. Disk, memory and scoring time shrink with it, recall
-  // can too (README, "Scale": measured on the scale benchmark). Range
+  // can too (README, "Retrieval at scale": the scale benchmark). Range
   // [0, 100000]. Default 0.
   int stored_features = 0;
   // Extract features on the whole (resized) frame and keep those inside the
