@@ -138,14 +138,27 @@ void PlaceDatabase::Impl::KeepResidentUnderLimit() const {
   for (const Region& r : regions) total += r.bytes;
   if (total == 0) return;
   for (int i = 0; i < kMaxSlices && ProcessFileBackedResidentBytes() > limit; ++i) {
-    uint64_t at = release_cursor.fetch_add(kSlice, std::memory_order_relaxed) % total;
-    for (const Region& r : regions) {
-      if (at < r.bytes) {
-        r.file->ReleaseResidentPages(r.offset + at, std::min(kSlice, r.bytes - at));
-        break;
+    // The next slice: from the cursor to at most kSlice on, ending where its
+    // region ends, so that slices tile the regions lap after lap (queries
+    // racing here each take their own).
+    uint64_t cursor = release_cursor.load(std::memory_order_relaxed);
+    const Region* region = nullptr;
+    uint64_t at = 0, length = 0;
+    do {
+      at = cursor % total;
+      uint64_t start = 0;
+      for (const Region& r : regions) {
+        if (at < start + r.bytes) {
+          region = &r;
+          length = std::min(kSlice, start + r.bytes - at);
+          break;
+        }
+        start += r.bytes;
       }
-      at -= r.bytes;
-    }
+      at -= start;
+    } while (!release_cursor.compare_exchange_weak(cursor, (cursor % total) + length,
+                                                   std::memory_order_relaxed));
+    region->file->ReleaseResidentPages(region->offset + at, length);
     released_slices.fetch_add(1, std::memory_order_relaxed);
   }
 }

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <set>
@@ -182,6 +183,57 @@ TEST_F(SearchTest, BowNeedsAnIndex) {
   bow.retrieval.method = RetrievalMethod::kBow;
   EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.Query(Features(42), bow); },
                                           "rebuild the database with index set to bow"));
+}
+
+// Resident kB of this process's mappings of the file of `dir` whose name
+// starts with `prefix` (/proc/self/smaps).
+double MappedRssKb(const std::string& dir, const std::string& prefix) {
+  std::ifstream in("/proc/self/smaps");
+  const std::string path = fs::canonical(dir).string() + "/" + prefix;
+  std::string line;
+  bool ours = false;
+  double kb = 0.0;
+  while (std::getline(in, line)) {
+    const size_t slash = line.find('/');
+    if (!line.empty() && std::isxdigit(static_cast<unsigned char>(line[0])) &&
+        line.find('-') != std::string::npos) {
+      ours = slash != std::string::npos && line.compare(slash, path.size(), path) == 0;
+    } else if (ours && line.rfind("Rss:", 0) == 0) {
+      kb += std::stod(line.substr(4));
+    }
+  }
+  return kb;
+}
+
+// resident_limit_mb: after a query over the limit, the session lets go of
+// the keyframe file's pages (all of them here: the test process's libraries
+// alone are above 1 MiB, and the file is smaller than the slices a query
+// lets go of) and keeps the posting lists; the answers are the same.
+TEST_F(SearchTest, ResidentLimitLetsGoOfTheKeyframeFile) {
+  QueryOptions bow;
+  bow.retrieval.method = RetrievalMethod::kBow;
+  OpenOptions plain;
+  plain.prefetch = false;  // only queries map pages
+  OpenOptions limited = plain;
+  limited.resident_limit_mb = 1;
+  std::vector<QueryResult> expected;
+  {
+    const PlaceDatabase db = PlaceDatabase::Open(Dir(), plain);
+    for (int id = 41; id <= 50; ++id) expected.push_back(db.Query(Features(id), bow));
+    EXPECT_GT(MappedRssKb(Dir(), "keyframes."), 0.0);  // without a limit the pages stay
+  }
+  const PlaceDatabase db = PlaceDatabase::Open(Dir(), limited);
+  for (int id = 41; id <= 50; ++id) {
+    const QueryResult r = db.Query(Features(id), bow);
+    const QueryResult& e = expected[static_cast<size_t>(id - 41)];
+    ASSERT_EQ(r.ranked.size(), e.ranked.size()) << id;
+    for (size_t k = 0; k < r.ranked.size(); ++k) {
+      EXPECT_EQ(r.ranked[k].keyframe_id, e.ranked[k].keyframe_id) << id;
+      EXPECT_EQ(r.ranked[k].score, e.ranked[k].score) << id;
+    }
+    EXPECT_EQ(MappedRssKb(Dir(), "keyframes."), 0.0) << "after query " << id;
+    EXPECT_GT(MappedRssKb(Dir(), "bow."), 0.0) << "after query " << id;  // the postings stay
+  }
 }
 
 // A subset opened from a bow database rebuilds its index in memory.
