@@ -899,6 +899,9 @@ int main(int argc, char** argv) {
                     i + 1, now.anon - before_session.anon, now.file - before_session.file);
               }
             }
+            // The releases the last queries asked for done (resident_limit_mb:
+            // a thread of the session's lets go of pages behind the queries).
+            session.WaitForBackgroundWork();
             const Resident after = ResidentNow();
             nlohmann::json by_file = nlohmann::json::object();
             for (const auto& [name, mib] : MappedResidentMib(dir)) {

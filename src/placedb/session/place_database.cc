@@ -5,6 +5,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <filesystem>
 #include <mutex>
 #include <opencv2/imgcodecs.hpp>
@@ -80,18 +81,30 @@ struct PlaceDatabase::Impl {
   QueryContext Context(const std::vector<int32_t>* ids, std::vector<uint32_t>* among) const;
 
   // The files read into the page cache after the open (OpenOptions::prefetch),
-  // by `prefetcher` until done or `stop_prefetch`.
+  // by `prefetcher` until done or `stop_background`.
   std::thread prefetcher;
-  std::atomic<bool> stop_prefetch{false};
+  std::atomic<bool> stop_background{false};
   void StartPrefetch();
-  // OpenOptions::resident_limit_mb, after each query (under `state`): while
-  // the process's file-backed resident memory is above the limit, the
-  // query lets go of the next slice of the database files (a cursor going
-  // round the index file, then the keyframe file), at most kMaxSlices a
-  // query: no query pays for releasing everything at once.
+  // OpenOptions::resident_limit_mb: a query over the limit only asks
+  // `releaser` (a thread of its own, started at open) to let go of pages;
+  // the thread, while the process's file-backed resident memory is above
+  // the limit, lets go of the next slice of the database files (a cursor
+  // going round the index file but its postings, then the keyframe file).
+  // So no query pays for the release (madvise and its TLB flushes), only for
+  // the minor faults of pages it reads again.
+  std::thread releaser;
   mutable std::atomic<uint64_t> release_cursor{0};
-  mutable std::atomic<uint64_t> released_slices{0};
-  void KeepResidentUnderLimit() const;
+  void StartReleaser();
+  void AskForRelease() const;
+  void ReleaseWhileOverLimit() const;
+  // What WaitForBackgroundWork waits for, under `background`: the prefetch
+  // pass done (or never started), releases asked for and served.
+  mutable std::mutex background;
+  mutable std::condition_variable background_changed;
+  bool prefetch_done = true;
+  mutable uint64_t releases_asked = 0;
+  uint64_t releases_served = 0;
+  void WaitForBackgroundWork() const;
 };
 
 void PlaceDatabase::Impl::StartPrefetch() {
@@ -103,63 +116,100 @@ void PlaceDatabase::Impl::StartPrefetch() {
   if (bow && bow->base().mapped_file()) index.emplace(bow->base());
   std::shared_ptr<const MappedFile> keyframes = db.mapped_file();
   if (!index && !keyframes) return;
+  prefetch_done = false;
   prefetcher = std::thread([index = std::move(index), keyframes = std::move(keyframes), this] {
     if (index) {
-      index->mapped_file()->Prefetch(stop_prefetch);
-      index->CheckInBackground(stop_prefetch);
+      index->mapped_file()->Prefetch(stop_background);
+      index->CheckInBackground(stop_background);
     }
-    if (keyframes) keyframes->Prefetch(stop_prefetch);
+    if (keyframes) keyframes->Prefetch(stop_background);
+    const std::lock_guard<std::mutex> lock(background);
+    prefetch_done = true;
+    background_changed.notify_all();
   });
 }
 
-void PlaceDatabase::Impl::KeepResidentUnderLimit() const {
-  if (open.resident_limit_mb <= 0) return;
-  constexpr uint64_t kSlice = uint64_t{8} << 20;
-  constexpr int kMaxSlices = 8;
-  const uint64_t limit = static_cast<uint64_t>(open.resident_limit_mb) << 20;
-  if (ProcessFileBackedResidentBytes() <= limit) return;  // the common case: one read of statm
-  // What may be let go: the keyframe file, and the index file but for its
-  // posting lists (every query reads some of them, all over the section).
-  struct Region {
-    const MappedFile* file;
-    uint64_t offset, bytes;
-  };
-  std::vector<Region> regions;
-  if (const MappedFile* f = db.mapped_file().get()) regions.push_back({f, 0, f->size()});
-  if (bow && bow->base().mapped_file()) {
-    const MappedFile* f = bow->base().mapped_file().get();
-    const auto [at, bytes] = bow->base().PostingsExtent();
-    if (at + bytes <= f->size()) {
-      regions.push_back({f, 0, at});
-      regions.push_back({f, at + bytes, f->size() - at - bytes});
+void PlaceDatabase::Impl::StartReleaser() {
+  releaser = std::thread([this] {
+    std::unique_lock<std::mutex> lock(background);
+    for (;;) {
+      background_changed.wait(
+          lock, [this] { return stop_background.load() || releases_served < releases_asked; });
+      if (stop_background) return;
+      const uint64_t asked = releases_asked;
+      lock.unlock();
+      ReleaseWhileOverLimit();
+      lock.lock();
+      releases_served = asked;
+      background_changed.notify_all();
     }
+  });
+}
+
+void PlaceDatabase::Impl::AskForRelease() const {
+  if (open.resident_limit_mb <= 0) return;
+  {
+    const std::lock_guard<std::mutex> lock(background);
+    ++releases_asked;
   }
-  uint64_t total = 0;
-  for (const Region& r : regions) total += r.bytes;
-  if (total == 0) return;
-  for (int i = 0; i < kMaxSlices && ProcessFileBackedResidentBytes() > limit; ++i) {
-    // The next slice: from the cursor to at most kSlice on, ending where its
-    // region ends, so that slices tile the regions lap after lap (queries
-    // racing here each take their own).
-    uint64_t cursor = release_cursor.load(std::memory_order_relaxed);
-    const Region* region = nullptr;
-    uint64_t at = 0, length = 0;
-    do {
-      at = cursor % total;
+  background_changed.notify_all();
+}
+
+void PlaceDatabase::Impl::WaitForBackgroundWork() const {
+  std::unique_lock<std::mutex> lock(background);
+  const uint64_t asked = releases_asked;
+  background_changed.wait(lock, [&] { return prefetch_done && releases_served >= asked; });
+}
+
+void PlaceDatabase::Impl::ReleaseWhileOverLimit() const {
+  constexpr uint64_t kSlice = uint64_t{8} << 20;
+  // At most this many slices under one hold of `state`: a writer waiting to
+  // publish waits for no more.
+  constexpr int kSlicesPerHold = 8;
+  const uint64_t limit = static_cast<uint64_t>(open.resident_limit_mb) << 20;
+  // At most one lap of the files a pass: what else is mapped (libraries,
+  // other files) may keep the process above the limit whatever is let go.
+  uint64_t released = 0;
+  for (;;) {
+    if (stop_background || ProcessFileBackedResidentBytes() <= limit) return;
+    // The files may change under a writer (Save): they are read under `state`.
+    const std::shared_lock<FairSharedMutex> hold(state);
+    // What may be let go: the keyframe file, and the index file but for its
+    // posting lists (every query reads some of them, all over the section).
+    struct Region {
+      const MappedFile* file;
+      uint64_t offset, bytes;
+    };
+    std::vector<Region> regions;
+    if (const MappedFile* f = db.mapped_file().get()) regions.push_back({f, 0, f->size()});
+    if (bow && bow->base().mapped_file()) {
+      const MappedFile* f = bow->base().mapped_file().get();
+      const auto [at, bytes] = bow->base().PostingsExtent();
+      if (at + bytes <= f->size()) {
+        regions.push_back({f, 0, at});
+        regions.push_back({f, at + bytes, f->size() - at - bytes});
+      }
+    }
+    uint64_t total = 0;
+    for (const Region& r : regions) total += r.bytes;
+    if (released >= total) return;
+    for (int i = 0; i < kSlicesPerHold && released < total; ++i) {
+      if (i > 0 && (stop_background || ProcessFileBackedResidentBytes() <= limit)) return;
+      // The next slice: from the cursor to at most kSlice on, ending where
+      // its region ends, so that slices tile the regions lap after lap.
+      const uint64_t cursor = release_cursor.load(std::memory_order_relaxed) % total;
       uint64_t start = 0;
       for (const Region& r : regions) {
-        if (at < start + r.bytes) {
-          region = &r;
-          length = std::min(kSlice, start + r.bytes - at);
+        if (cursor < start + r.bytes) {
+          const uint64_t length = std::min(kSlice, start + r.bytes - cursor);
+          r.file->ReleaseResidentPages(r.offset + (cursor - start), length);
+          release_cursor.store(cursor + length, std::memory_order_relaxed);
+          released += length;
           break;
         }
         start += r.bytes;
       }
-      at -= start;
-    } while (!release_cursor.compare_exchange_weak(cursor, (cursor % total) + length,
-                                                   std::memory_order_relaxed));
-    region->file->ReleaseResidentPages(region->offset + at, length);
-    released_slices.fetch_add(1, std::memory_order_relaxed);
+    }
   }
 }
 
@@ -190,8 +240,13 @@ QueryContext PlaceDatabase::Impl::Context(const std::vector<int32_t>* ids,
 }
 
 PlaceDatabase::Impl::~Impl() {
-  stop_prefetch = true;
+  {
+    const std::lock_guard<std::mutex> lock(background);
+    stop_background = true;
+  }
+  background_changed.notify_all();
   if (prefetcher.joinable()) prefetcher.join();
+  if (releaser.joinable()) releaser.join();
   std::error_code ignore;
   for (const std::string& name : unsaved_images) fs::remove(fs::path(dir) / name, ignore);
 }
@@ -412,9 +467,11 @@ PlaceDatabase PlaceDatabase::Open(const std::string& dir, const OpenOptions& opt
     }
   }
   if (options.prefetch && impl->whole) impl->StartPrefetch();
+  if (options.resident_limit_mb > 0) impl->StartReleaser();
   return PlaceDatabase(std::move(impl));
 }
 
+void PlaceDatabase::WaitForBackgroundWork() const { impl_->WaitForBackgroundWork(); }
 const std::string& PlaceDatabase::directory() const { return impl_->dir; }
 const BuildOptions& PlaceDatabase::build_options() const { return impl_->build; }
 const ExtractorOptions& PlaceDatabase::extractor_options() const { return impl_->build.features; }
@@ -595,7 +652,7 @@ QueryResult PlaceDatabase::Run(const FeatureSet& features, const std::vector<int
   context.candidate_cost = &impl_->candidate_cost;
   context.clock = &clock;
   QueryResult r = QueryDatabase(impl_->db, features, options, context);
-  impl_->KeepResidentUnderLimit();
+  impl_->AskForRelease();
   r.times.extract_ms = extract_ms;
   r.times.total_ms += extract_ms;
   return r;
@@ -620,7 +677,7 @@ Shortlist PlaceDatabase::BowShortlist(const FeatureSet& features,
   QueryContext context = impl_->Context(keyframe_ids, &among);
   context.clock = &clock;
   Shortlist shortlist = ShortlistDatabase(impl_->db, features, options, context);
-  impl_->KeepResidentUnderLimit();
+  impl_->AskForRelease();
   return shortlist;
 }
 

@@ -80,12 +80,12 @@ struct OpenOptions {
   // to the queries (resident memory follows their use alone).
   bool prefetch = true;
   // While, after a query, this process's file-backed resident memory (the
-  // pages of mapped files it has touched) is above this many MiB, the query
-  // lets go of the next 8 MiB slice of the database's files (a cursor going
-  // round them; at most 8 slices a query, so no query pays for releasing
-  // everything at once): madvise MADV_DONTNEED, the pages stay in the page
-  // cache and the next read maps them again at the cost of a minor page
-  // fault. So the resident memory follows recent use, not everything ever
+  // pages of mapped files it has touched) is above this many MiB, the
+  // session lets go of the next 8 MiB slice of the database's files (a
+  // cursor going round them), on a thread of its own that the query only
+  // wakes (WaitForBackgroundWork waits for it): madvise MADV_DONTNEED, the
+  // pages stay in the page cache and the next read maps them again at the
+  // cost of a minor page fault. So the resident memory follows recent use, not everything ever
   // read, at a cost per query (minor faults where pages were let go; README,
   // "Retrieval at scale", measures it). The measure is the process's
   // (/proc/self/statm): other mapped files count too. Range [0, 1048576];
@@ -235,6 +235,11 @@ class PlaceDatabase {
     uint32_t format_version = 0;   // the keyframe file's
   };
   VerifyReport Verify() const;
+  // Waits until the background work asked for so far is done: the prefetch
+  // pass (OpenOptions::prefetch) and the releases queries asked for until
+  // now (OpenOptions::resident_limit_mb). Answers never depend on it; it is
+  // for measuring memory (benchmarks, tests) at a settled point.
+  void WaitForBackgroundWork() const;
   // Path of a keyframe's stored PNG ("" when the database keeps none).
   std::string StoredImagePath(const Keyframe& keyframe) const;
 

@@ -205,10 +205,10 @@ double MappedRssKb(const std::string& dir, const std::string& prefix) {
   return kb;
 }
 
-// resident_limit_mb: after a query over the limit, the session lets go of
-// the keyframe file's pages (all of them here: the test process's libraries
-// alone are above 1 MiB, and the file is smaller than the slices a query
-// lets go of) and keeps the posting lists; the answers are the same.
+// resident_limit_mb: after a query over the limit, the session's releaser
+// lets go of the keyframe file's pages (all of them here: the test
+// process's libraries alone are above 1 MiB) and keeps the posting lists;
+// the answers are the same. WaitForBackgroundWork is the settled point.
 TEST_F(SearchTest, ResidentLimitLetsGoOfTheKeyframeFile) {
   QueryOptions bow;
   bow.retrieval.method = RetrievalMethod::kBow;
@@ -231,8 +231,34 @@ TEST_F(SearchTest, ResidentLimitLetsGoOfTheKeyframeFile) {
       EXPECT_EQ(r.ranked[k].keyframe_id, e.ranked[k].keyframe_id) << id;
       EXPECT_EQ(r.ranked[k].score, e.ranked[k].score) << id;
     }
+    db.WaitForBackgroundWork();
     EXPECT_EQ(MappedRssKb(Dir(), "keyframes."), 0.0) << "after query " << id;
     EXPECT_GT(MappedRssKb(Dir(), "bow."), 0.0) << "after query " << id;  // the postings stay
+  }
+}
+
+// The background work of a session with prefetch and a resident limit:
+// WaitForBackgroundWork returns once the prefetch pass is done and the
+// releases asked for are served (after which the keyframe file is let go
+// of), and a session closed while both threads may still run stops them
+// (the sanitizer passes run this).
+TEST_F(SearchTest, BackgroundWorkSettlesAndStops) {
+  QueryOptions bow;
+  bow.retrieval.method = RetrievalMethod::kBow;
+  OpenOptions both;
+  both.resident_limit_mb = 1;
+  {
+    const PlaceDatabase db = PlaceDatabase::Open(Dir(), both);
+    db.WaitForBackgroundWork();
+    for (int id = 60; id <= 62; ++id) {
+      EXPECT_FALSE(db.Query(Features(id), bow).ranked.empty()) << id;
+      db.WaitForBackgroundWork();
+      EXPECT_EQ(MappedRssKb(Dir(), "keyframes."), 0.0) << "after query " << id;
+    }
+  }
+  for (int i = 0; i < 5; ++i) {
+    const PlaceDatabase db = PlaceDatabase::Open(Dir(), both);
+    if (i % 2 == 1) db.Query(Features(60 + i), bow);
   }
 }
 
