@@ -901,6 +901,15 @@ void BowIndex::CheckInBackground(const std::atomic<bool>& stop) const {
   for (uint32_t w = 0; w < num_words && !stop.load(std::memory_order_relaxed); ++w)
     CheckAndMark(&lazy_->word_checked[w],
                  [&] { return a.WordBlockProblem(w, word_sums_, nullptr); });
+  for (uint32_t i = 0; i < num_keyframes_ && !stop.load(std::memory_order_relaxed); ++i)
+    CheckAndMark(&lazy_->keyframe_checked[i],
+                 [&] { return a.KeyframeBlockProblem(i, keyframe_sums_, nullptr); });
+}
+
+bool BowIndex::KeyframeChecked(uint32_t index) const {
+  PLACEDB_CHECK(index < num_keyframes_, "keyframe index ", index,
+                " is out of range (the index holds ", num_keyframes_, ")");
+  return lazy_ == nullptr || lazy_->keyframe_checked[index].load(std::memory_order_acquire) != 0;
 }
 
 void BowIndex::VerifyAll() const {

@@ -185,17 +185,22 @@ class BowIndex {
   // candidate keyframe).
   std::pair<uint64_t, uint64_t> PostingsExtent() const;
   // Checks, on the calling thread, what queries would check on first use
-  // of every word (its postings' block: checksum and values), in file
-  // order, until done or `stop`, so that a session's first queries do not
-  // pay for it (PlaceDatabase runs it after the prefetch). It reads the
-  // postings through the mapping, so they are then mapped into the process
-  // (resident): every query reads postings all over the section, and a
-  // query that maps them itself pays a page fault per list (measured at
-  // 100 000 keyframes: the first 25 queries of a session took up to 3x the
-  // time of later ones). A damaged block is left unchecked, for the query
-  // that reads it to find and report (nothing is thrown here). Thread-safe
-  // with queries.
+  // of every word (its postings' block: checksum and values), then of
+  // every keyframe (its vector and direct entries, which a query reads for
+  // each candidate it ranks), in file order, until done or `stop`, so that
+  // a session's first queries do not pay for it (PlaceDatabase runs it
+  // after the prefetch). It reads the blocks through the mapping, so they
+  // are then mapped into the process (resident): every query reads
+  // postings all over the section and the blocks of tens of candidates,
+  // and a query that maps them itself pays a page fault for each (measured
+  // at 100 000 keyframes: the first 25 queries of a session took up to 3x
+  // the time of later ones). A damaged block is left unchecked, for the
+  // query that reads it to find and report (nothing is thrown here).
+  // Thread-safe with queries.
   void CheckInBackground(const std::atomic<bool>& stop) const;
+  // Whether keyframe `index`'s block (vector and direct entries) has been
+  // checked (by a first use, CheckInBackground or VerifyAll).
+  bool KeyframeChecked(uint32_t index) const;
   // Checks everything not yet checked (see "Integrity" above): the payload
   // checksum, every keyframe's and word's block, and the transposition.
   // CorruptDatabase naming the file.

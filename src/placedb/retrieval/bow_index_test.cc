@@ -791,6 +791,18 @@ TEST_F(BowIndexFileTest, BackgroundCheckLeavesDamageToTheQuery) {
   halted.CheckInBackground(stopped);
   EXPECT_TRUE(
       ThrowsWith<CorruptDatabase>([&] { halted.Query(damaged, 5); }, "fail their block checksum"));
+  // A keyframe's block (vector and direct entries) damaged: the background
+  // check leaves it to the query too, and checks the others.
+  std::string keyframe_damaged = good_;
+  keyframe_damaged[keyframe_bytes_ + KeyframeByte(2) - 2] ^= 0x01;  // keyframe 1's
+  const BowIndex index3 =
+      BowIndex::Open(dir_.Write("background3.bin", keyframe_damaged), Orb().vocabulary, Orb().db);
+  index3.CheckInBackground(stop);
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { index3.DirectNodes(1); },
+                                          "keyframe 1's entries fail their block checksum"));
+  EXPECT_TRUE(index3.KeyframeChecked(0));
+  EXPECT_TRUE(index3.KeyframeChecked(2));
+  EXPECT_FALSE(index3.KeyframeChecked(1));
 }
 
 // A version 2 file (f32 arrays), written here as the placedb of that

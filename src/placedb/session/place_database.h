@@ -69,15 +69,17 @@ struct OpenOptions {
   // MADV_WILLNEED), so that the first queries do not wait for the disk; the
   // open itself does not wait, and the process's resident memory does not
   // grow by it (the page cache is the kernel's, given back under memory
-  // pressure). Then it checks every posting list of the index (its block
-  // checksum and values, what a query checks on first use), which maps the
-  // postings into the process: its file-backed resident memory grows by
-  // them (317 MiB at 100 000 keyframes; every query reads postings all
-  // over them, and the resident limit keeps them too), so that the first
-  // queries pay neither the checks nor a page fault per posting list. A
-  // damaged list is left for the query that reads it to report. Only for a
-  // session on the whole database. Default true; false leaves everything
-  // to the queries (resident memory follows their use alone).
+  // pressure). Then it checks every posting list of the index, then every
+  // keyframe's vector and direct entries (their block checksums and values,
+  // what a query checks on first use), which maps them into the process:
+  // its file-backed resident memory grows by the index file (317 MiB of
+  // postings at 100 000 keyframes, which every query reads all over and
+  // the resident limit keeps, and the keyframe blocks, which a query reads
+  // for each of its candidates), so that the first queries pay neither the
+  // checks nor a page fault per list or candidate. A damaged block is left
+  // for the query that reads it to report. Only for a session on the whole
+  // database. Default true; false leaves everything to the queries
+  // (resident memory follows their use alone).
   bool prefetch = true;
   // While, after a query, this process's file-backed resident memory (the
   // pages of mapped files it has touched) is above this many MiB, the
