@@ -171,7 +171,7 @@ const OptionTable<OpenOptions>& OpenOptions::Table() {
            BoolFlag::kSwitch, kPython);
     t.Bool("prefetch", PLACEDB_MEMBER(O, prefetch),
            "read the database files into the page cache in the background after the open, then "
-           "check the index's posting lists",
+           "check the index and the keyframes' features",
            BoolFlag::kNegatable, kCallers);
     t.Number("resident_limit_mb", PLACEDB_MEMBER(O, resident_limit_mb),
              OptionRange::Closed(0, 1048576),

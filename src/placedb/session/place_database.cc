@@ -84,6 +84,16 @@ struct PlaceDatabase::Impl {
   // by `prefetcher` until done or `stop_background`.
   std::thread prefetcher;
   std::atomic<bool> stop_background{false};
+  // Queries running now (Run, BowShortlist): the prefetch thread's check of
+  // the keyframes' features waits while there are any (it reads and sums
+  // the whole file, and a query beside it would share the memory bandwidth
+  // and caches of this machine's two cores).
+  mutable std::atomic<int> queries_running{0};
+  struct QueryRunning {
+    explicit QueryRunning(const Impl& m) : m(m) { m.queries_running.fetch_add(1); }
+    ~QueryRunning() { m.queries_running.fetch_sub(1); }
+    const Impl& m;
+  };
   void StartPrefetch();
   // OpenOptions::resident_limit_mb: a query over the limit only asks
   // `releaser` (a thread of its own, started at open) to let go of pages;
@@ -122,7 +132,27 @@ void PlaceDatabase::Impl::StartPrefetch() {
       index->mapped_file()->Prefetch(stop_background);
       index->CheckInBackground(stop_background);
     }
-    if (keyframes) keyframes->Prefetch(stop_background);
+    if (keyframes) {
+      keyframes->Prefetch(stop_background);
+      // Then the checks the first queries would make of their candidates'
+      // features, reading the file rather than mapping it (the resident
+      // memory stays what queries read), 16 keyframes (~0.1 ms) at a time
+      // while no query runs, under `state` (a writer waits for no more). A
+      // read error leaves the rest to the queries, which report it.
+      try {
+        std::vector<char> buffer;
+        size_t next = 0;
+        for (bool more = true; more && !stop_background.load(std::memory_order_relaxed);) {
+          if (queries_running.load() > 0) {
+            std::this_thread::sleep_for(std::chrono::milliseconds(1));
+            continue;
+          }
+          const std::shared_lock<FairSharedMutex> hold(state);
+          more = db.CheckSomeInBackground(&next, 16, &buffer);
+        }
+      } catch (const std::exception&) {
+      }
+    }
     const std::lock_guard<std::mutex> lock(background);
     prefetch_done = true;
     background_changed.notify_all();
@@ -628,6 +658,7 @@ QueryResult PlaceDatabase::Run(const FeatureSet& features, const std::vector<int
     PLACEDB_THROW_INVALID("the database at ", impl_->dir,
                           " was opened as a keyframe table (`keyframe_table`): it cannot query");
   }
+  const Impl::QueryRunning running(*impl_);
   // The deadline's clock starts before the wait for a writer to publish.
   const Timer clock;
   std::shared_lock<FairSharedMutex> lock(impl_->state, std::defer_lock);
@@ -662,6 +693,7 @@ Shortlist PlaceDatabase::BowShortlist(const FeatureSet& features,
                                       const std::vector<int32_t>* keyframe_ids,
                                       const QueryOptions& options) const {
   PLACEDB_CHECK_OPTIONS(options);
+  const Impl::QueryRunning running(*impl_);
   if (impl_->keyframe_table) {
     PLACEDB_THROW_INVALID("the database at ", impl_->dir,
                           " was opened as a keyframe table (`keyframe_table`): it cannot query");

@@ -76,10 +76,12 @@ struct OpenOptions {
   // postings at 100 000 keyframes, which every query reads all over and
   // the resident limit keeps, and the keyframe blocks, which a query reads
   // for each of its candidates), so that the first queries pay neither the
-  // checks nor a page fault per list or candidate. A damaged block is left
-  // for the query that reads it to report. Only for a session on the whole
-  // database. Default true; false leaves everything to the queries
-  // (resident memory follows their use alone).
+  // checks nor a page fault per list or candidate. Last, while no query
+  // runs, it checks every keyframe's features in the keyframe file, reading
+  // them (pread) rather than mapping them: resident memory does not grow by
+  // it. A damaged block is left for the query that reads it to report. Only
+  // for a session on the whole database. Default true; false leaves
+  // everything to the queries (resident memory follows their use alone).
   bool prefetch = true;
   // While, after a query, this process's file-backed resident memory (the
   // pages of mapped files it has touched) is above this many MiB, the

@@ -262,6 +262,30 @@ TEST_F(SearchTest, BackgroundWorkSettlesAndStops) {
   }
 }
 
+// prefetch (the default) also checks every keyframe's features in the
+// background, as their first use would, by reading the keyframe file, not
+// mapping it: once the background work is done every keyframe is checked and
+// the process maps no more of the file than the open did. Without prefetch
+// the queries check what they read.
+TEST_F(SearchTest, PrefetchChecksTheFeaturesWithoutMappingThem) {
+  {
+    const PlaceDatabase db = PlaceDatabase::Open(Dir());
+    const double opened_kb = MappedRssKb(Dir(), "keyframes.");
+    db.WaitForBackgroundWork();
+    const Database& stored = StorageView(db).database();
+    for (size_t i = 0; i < stored.size(); ++i) EXPECT_TRUE(stored.FeaturesChecked(i)) << i;
+    EXPECT_EQ(MappedRssKb(Dir(), "keyframes."), opened_kb);
+  }
+  OpenOptions plain;
+  plain.prefetch = false;
+  const PlaceDatabase db = PlaceDatabase::Open(Dir(), plain);
+  db.WaitForBackgroundWork();
+  const Database& stored = StorageView(db).database();
+  size_t checked = 0;
+  for (size_t i = 0; i < stored.size(); ++i) checked += stored.FeaturesChecked(i);
+  EXPECT_EQ(checked, 0u);
+}
+
 // A subset opened from a bow database rebuilds its index in memory.
 TEST_F(SearchTest, SubsetsGetTheirOwnIndex) {
   OpenOptions open;

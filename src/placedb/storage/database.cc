@@ -220,35 +220,69 @@ bool Database::FeaturesChecked(size_t index) const {
 
 void Database::CheckFeatures(size_t index) const {
   const LazyCheck& lazy = *lazy_;
-  const Keyframe& k = keyframes_[index];
-  auto fail = [&](const auto&... what) {
-    PLACEDB_THROW_CORRUPT(lazy.shown, ": keyframe ", k.id, what...);
-  };
   const uint64_t first = row_offset_[index];
+  const std::string bad =
+      FeatureProblem(index, mapped_compact_keypoints_ + first * ckp::kRecordBytes,
+                     mapped_descriptors_ + first * static_cast<uint64_t>(descriptor_bytes_));
+  if (!bad.empty()) PLACEDB_THROW_CORRUPT(lazy.shown, ": keyframe ", keyframes_[index].id, bad);
+  lazy.checked[index].store(1, std::memory_order_release);
+}
+
+std::string Database::FeatureProblem(size_t index, const char* records, const uint8_t* rows) const {
+  const LazyCheck& lazy = *lazy_;
+  const Keyframe& k = keyframes_[index];
   const size_t count = feature_count_[index];
-  const char* records = mapped_compact_keypoints_ + first * ckp::kRecordBytes;
-  const uint8_t* rows = mapped_descriptors_ + first * static_cast<uint64_t>(descriptor_bytes_);
   if (Checksum64(records, count * ckp::kRecordBytes) != lazy.sums[2 * index])
-    fail(": its keypoints fail their block checksum (the file is corrupted)");
+    return ": its keypoints fail their block checksum (the file is corrupted)";
   if (Checksum64(rows, count * static_cast<size_t>(descriptor_bytes_)) != lazy.sums[2 * index + 1])
-    fail(": its descriptors fail their block checksum (the file is corrupted)");
+    return ": its descriptors fail their block checksum (the file is corrupted)";
   std::vector<cv::KeyPoint> keypoints(count);
   const int bits = ckp::FractionBits(k.stored_size);
   for (size_t f = 0; f < count; ++f) {
     if (!ckp::Decode(records + f * ckp::kRecordBytes, bits, &keypoints[f]))
-      fail(": keypoint ", f, " has an impossible angle code");
+      return internal::JoinMessage(": keypoint ", f, " has an impossible angle code");
   }
   const std::string bad = CheckKeypoints(keypoints.data(), count, k.stored_size);
-  if (!bad.empty()) fail(" ", bad);
+  if (!bad.empty()) return " " + bad;
   if (feature_type_ == FeatureType::kSurf) {
     for (size_t f = 0; f < count; ++f) {
       if ((keypoints[f].class_id >= 0) != (f < positive_count_[index]))
-        fail(": keypoints are not grouped by Laplacian sign");
+        return ": keypoints are not grouped by Laplacian sign";
     }
     if (!AllFinite(reinterpret_cast<const float*>(rows), count * descriptor_bytes_ / 4))
-      fail(" has a SURF descriptor value that is not finite");
+      return " has a SURF descriptor value that is not finite";
   }
-  lazy.checked[index].store(1, std::memory_order_release);
+  return "";
+}
+
+bool Database::CheckSomeInBackground(size_t* next, size_t max_keyframes,
+                                     std::vector<char>* buffer) const {
+  if (lazy_ == nullptr || !mapping_ || mapped_compact_keypoints_ == nullptr) return false;
+  const LazyCheck& lazy = *lazy_;
+  const uint64_t records_at = static_cast<uint64_t>(mapped_compact_keypoints_ - mapping_->data());
+  const uint64_t rows_at =
+      static_cast<uint64_t>(reinterpret_cast<const char*>(mapped_descriptors_) - mapping_->data());
+  size_t done = 0;
+  for (; *next < keyframes_.size() && done < max_keyframes; ++*next) {
+    const size_t i = *next;
+    if (FeaturesChecked(i)) continue;
+    ++done;
+    const uint64_t count = feature_count_[i];
+    const uint64_t record_bytes = count * ckp::kRecordBytes;
+    const uint64_t row_bytes = count * static_cast<uint64_t>(descriptor_bytes_);
+    // Descriptor rows first in the buffer: SURF's floats stay aligned.
+    buffer->resize(row_bytes + record_bytes);
+    mapping_->ReadAt(rows_at + row_offset_[i] * static_cast<uint64_t>(descriptor_bytes_), row_bytes,
+                     buffer->data());
+    mapping_->ReadAt(records_at + row_offset_[i] * ckp::kRecordBytes, record_bytes,
+                     buffer->data() + row_bytes);
+    // Damage is left unmarked: the first use reads it again and reports it.
+    if (FeatureProblem(i, buffer->data() + row_bytes,
+                       reinterpret_cast<const uint8_t*>(buffer->data()))
+            .empty())
+      lazy.checked[i].store(1, std::memory_order_release);
+  }
+  return *next < keyframes_.size();
 }
 
 void Database::EnsureWholeImageChecked() const {

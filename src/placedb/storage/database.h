@@ -141,6 +141,16 @@ class Database {
   // Whether keyframe `index`'s features have been checked (always true but
   // for a version 3 file's keyframes not used yet).
   bool FeaturesChecked(size_t index) const;
+  // Checks, as their first use would, the features of the keyframes from
+  // *next on that are not checked yet, at most `max_keyframes` of them,
+  // reading their bytes from the file (MappedFile::ReadAt into `buffer`),
+  // not through the mapping: the process's resident memory does not grow.
+  // A keyframe that passes is marked checked; one that fails is left as it
+  // was, for its first use to report. Advances *next; returns whether
+  // keyframes are left after it (false at once for a database with nothing
+  // to check). For a session's background thread (OpenOptions::prefetch):
+  // thread-safe against readers, not against changes of the database.
+  bool CheckSomeInBackground(size_t* next, size_t max_keyframes, std::vector<char>* buffer) const;
   // The version of the keyframe file this database was read from (0: never
   // read from a file).
   uint32_t file_format_version() const { return file_format_version_; }
@@ -247,6 +257,9 @@ class Database {
     if (lazy_ != nullptr && !FeaturesChecked(index)) CheckFeatures(index);
   }
   void CheckFeatures(size_t index) const;
+  // Why keyframe `index`'s features, given their compact keypoint records
+  // and descriptor rows, are impossible (to follow "keyframe ID"), or "".
+  std::string FeatureProblem(size_t index, const char* records, const uint8_t* rows) const;
   void EnsureWholeImageChecked() const;
   const cv::KeyPoint* KeypointData() const {
     return mapping_ ? mapped_keypoints_ : keypoints_.data();

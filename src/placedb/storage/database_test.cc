@@ -689,6 +689,40 @@ TEST_F(DatabaseFileTest, FeaturesAreCheckedOnFirstUse) {
   ExpectDatabasesEqual(*db_, good);
 }
 
+// The background check (a session's prefetch thread) marks what passes the
+// first-use check, a few keyframes a call, reading the file without mapping
+// it, and leaves a damaged keyframe for its first use to report.
+TEST_F(DatabaseFileTest, BackgroundCheckLeavesDamageToTheFirstUse) {
+  const size_t rows = SectionOffset(keyframe_file::kDescriptors);
+  const size_t second = db_->FeatureCount(0);  // keyframe 20's first row
+  std::string bad = bytes_;
+  bad[rows + 32 * second + 9] = static_cast<char>(bad[rows + 32 * second + 9] ^ 0x10);
+  WriteBytes(bin_, bad);
+  const Database db = Database::Load(Dir());
+  std::vector<char> buffer;
+  size_t next = 0;
+  EXPECT_TRUE(db.CheckSomeInBackground(&next, 1, &buffer));
+  EXPECT_EQ(next, 1u);
+  EXPECT_TRUE(db.FeaturesChecked(0));
+  EXPECT_FALSE(db.FeaturesChecked(1));
+  EXPECT_FALSE(db.CheckSomeInBackground(&next, 5, &buffer));
+  EXPECT_EQ(next, 3u);
+  EXPECT_FALSE(db.FeaturesChecked(1));
+  EXPECT_TRUE(db.FeaturesChecked(2));
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>(
+      [&] { db.Descriptors(1); }, "keyframe 20: its descriptors fail their block checksum"));
+  EXPECT_NO_THROW(db.Descriptors(2));
+  // Undamaged: everything is marked; a built database has nothing to check.
+  WriteBytes(bin_, bytes_);
+  const Database good = Database::Load(Dir());
+  next = 0;
+  while (good.CheckSomeInBackground(&next, 2, &buffer)) {
+  }
+  for (size_t i = 0; i < 3; ++i) EXPECT_TRUE(good.FeaturesChecked(i));
+  next = 0;
+  EXPECT_FALSE(db_->CheckSomeInBackground(&next, 5, &buffer));
+}
+
 TEST_F(DatabaseFileTest, WrongVersions) {
   std::string bad = bytes_;
   Put<uint32_t>(&bad, 8, kDatabaseFormatVersion + 1);

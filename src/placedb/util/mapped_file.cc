@@ -39,8 +39,30 @@ std::shared_ptr<const MappedFile> MappedFile::FromFd(int fd, const std::string& 
     if (p == MAP_FAILED) PLACEDB_THROW_IO("cannot map ", what, ": ", std::strerror(errno));
     file->data_ = static_cast<const char*>(p);
     file->mapped_ = true;
+    // Kept for ReadAt (the caller closes `fd`).
+    file->fd_ = ::fcntl(fd, F_DUPFD_CLOEXEC, 0);
+    if (file->fd_ < 0) PLACEDB_THROW_IO("cannot keep ", what, " open: ", std::strerror(errno));
   }
+  file->what_ = what;
   return file;  // the mapping keeps the file's pages when fd is closed
+}
+
+void MappedFile::ReadAt(size_t offset, size_t length, void* dst) const {
+  if (offset > size_ || length > size_ - offset) {
+    PLACEDB_THROW_INVALID("bytes [", offset, ", ", offset + length, ") are outside ", what_, " (",
+                          size_, " bytes)");
+  }
+  char* out = static_cast<char*>(dst);
+  while (length > 0) {
+    const ssize_t n = ::pread(fd_, out, length, static_cast<off_t>(offset));
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) PLACEDB_THROW_IO("cannot read ", what_, ": ", std::strerror(errno));
+    // The file shrank under its mapping (it is never written in place).
+    if (n == 0) PLACEDB_THROW_IO("cannot read ", what_, ": it ends before byte ", offset);
+    out += n;
+    offset += static_cast<size_t>(n);
+    length -= static_cast<size_t>(n);
+  }
 }
 
 void MappedFile::Prefetch(const std::atomic<bool>& stop) const {
@@ -77,6 +99,7 @@ uint64_t ProcessFileBackedResidentBytes() {
 
 MappedFile::~MappedFile() {
   if (mapped_) ::munmap(const_cast<char*>(data_), size_);
+  if (fd_ >= 0) ::close(fd_);
 }
 
 }  // namespace placedb

@@ -44,12 +44,21 @@ class MappedFile {
   // The same for the pages of bytes [offset, offset + length) (clipped to
   // the file; pages partly inside count).
   void ReleaseResidentPages(size_t offset, size_t length) const;
+  // Copies bytes [offset, offset + length) of the file into `dst` by reading
+  // the file (pread on a descriptor the mapping keeps), not the mapping: the
+  // bytes are the mapping's (the same page cache pages), but nothing is
+  // mapped into the process, whose resident memory is unchanged. For a
+  // thread that checks a file's blocks in the background. InvalidArgument
+  // for a range outside the file, IoError when the read fails.
+  void ReadAt(size_t offset, size_t length, void* dst) const;
 
  private:
   MappedFile() = default;
   const char* data_ = nullptr;
   size_t size_ = 0;
   bool mapped_ = false;
+  int fd_ = -1;       // a duplicate of the mapped file's descriptor (ReadAt); -1 when empty
+  std::string what_;  // the file, in errors
 };
 
 // This process's file-backed resident memory (mapped files; shared memory
