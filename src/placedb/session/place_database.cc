@@ -1075,6 +1075,11 @@ void PlaceDatabase::Save() {
   // Read back what was written, as a reopened session would.
   OpenOptions options = m.open;
   options.threads = m.pool ? m.pool->size() : 1;
+  // Without background threads: its members move into this session under
+  // this session's lock, which threads of its own would not hold (they read
+  // its `db` under its lock). The new files are checked on first use.
+  options.prefetch = false;
+  options.resident_limit_mb = 0;
   PlaceDatabase fresh = Open(m.dir, options);
   Impl& f = *fresh.impl_;
   std::unique_lock<FairSharedMutex> publish(m.state);
