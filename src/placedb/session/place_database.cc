@@ -142,11 +142,18 @@ void PlaceDatabase::Impl::StartPrefetch() {
       try {
         std::vector<char> buffer;
         size_t next = 0;
+        // While queries keep running, it looks again after 1, 2, 4 ... up
+        // to 64 ms (a busy session does not wake it a thousand times a
+        // second), and after 1 ms again once it has found a gap.
+        constexpr std::chrono::milliseconds kFirstWait{1}, kLongestWait{64};
+        std::chrono::milliseconds wait = kFirstWait;
         for (bool more = true; more && !stop_background.load(std::memory_order_relaxed);) {
           if (queries_running.load() > 0) {
-            std::this_thread::sleep_for(std::chrono::milliseconds(1));
+            std::this_thread::sleep_for(wait);
+            wait = std::min(2 * wait, kLongestWait);
             continue;
           }
+          wait = kFirstWait;
           const std::shared_lock<FairSharedMutex> hold(state);
           more = db.CheckSomeInBackground(&next, 16, &buffer);
         }
