@@ -76,6 +76,7 @@
 #include <thread>
 
 #include "placedb/builder/builder.h"
+#include "placedb/distributed/partition_worker.h"
 #include "placedb/eval/augment.h"
 #include "placedb/eval/metrics.h"
 #include "placedb/match/hamming.h"
@@ -394,10 +395,12 @@ nlohmann::json InChildProcess(const std::function<nlohmann::json()>& fn) {
 // ---- The map split over partitions: worker processes and a voter --------------
 // Each worker is a process of its own (forked, so that it has the queries'
 // features; it opens the database itself, after the fork) that answers for
-// partition `part` of `num_parts` (contiguous), as a ROS worker node would:
+// partition `part` of `num_parts` (contiguous) as a ROS worker node does, with
+// the same library class (BowPartitionWorker) and the same two rounds; its
 // requests and answers are lines of text over pipes, the answers JSON.
-//   "S q"          its shortlist for query q (PlaceDatabase::BowShortlist)
-//   "A q id,id,.." its answer among those candidates (exhaustive among them)
+//   "S q"          its shortlist for query q (round 1)
+//   "A q i:id,..." its answer over its share of query q's candidates (round 2;
+//                  every worker is sent every candidate, as on ROS)
 //   "M"            {"open_ms", "private_mib", "file_mib"}: its open time and
 //                  the resident memory its session added
 struct Worker {
@@ -415,15 +418,8 @@ struct Worker {
     placedb::Timer open_timer;
     const placedb::PlaceDatabase db = placedb::PlaceDatabase::Open(dir.string(), open_options);
     const double open_ms = open_timer.ElapsedMs();
-    const std::vector<int32_t> all = db.keyframe_ids();
-    std::vector<int32_t> mine;
-    for (size_t i = 0; i < all.size(); ++i) {
-      if (placedb::InPartition(i, all.size(), part, num_parts,
-                               placedb::PartitionScheme::kContiguous))
-        mine.push_back(all[i]);
-    }
-    placedb::QueryOptions share = options.ForPartition();
-    share.retrieval.method = placedb::RetrievalMethod::kExhaustive;
+    placedb::BowPartitionWorker worker(db, placedb::KeyframeSubset::Partition(part, num_parts),
+                                       options);
     for (std::string line = ReadLine(in); !line.empty(); line = ReadLine(in)) {
       std::istringstream request(line);
       char kind = 0;
@@ -439,14 +435,19 @@ struct Worker {
         request >> q;
         if (q >= queries.size()) PLACEDB_THROW_INVALID("no query ", q);
         if (kind == 'S') {
-          answer = db.BowShortlist(queries[q].features, &mine, options);
+          answer = worker.MakeShortlist(q, queries[q].features);
         } else {
-          std::vector<int32_t> ids;
+          std::vector<placedb::ShortlistEntry> candidates;
           std::string list;
           request >> list;
-          std::istringstream items(list);
-          for (std::string id; std::getline(items, id, ',');) ids.push_back(std::stoi(id));
-          answer = db.QueryAmong(queries[q].features, ids, share);
+          std::istringstream items(list == "-" ? std::string() : list);
+          for (std::string item; std::getline(items, item, ',');) {
+            const size_t colon = item.find(':');
+            if (colon == std::string::npos) PLACEDB_THROW_INVALID("bad candidate ", item);
+            candidates.push_back({static_cast<uint32_t>(std::stoul(item.substr(0, colon))),
+                                  std::stoi(item.substr(colon + 1)), 0.0, -1});
+          }
+          answer = worker.Answer(q, candidates);
         }
       }
       std::fputs((answer.dump() + "\n").c_str(), out);
@@ -500,7 +501,6 @@ nlohmann::json RunPartitions(const placedb::PlaceDatabase& db, const fs::path& d
     if (line.empty()) PLACEDB_THROW_INVALID("a partition worker stopped (see its error above)");
     return nlohmann::json::parse(line);
   };
-  const size_t n = db.size();
   std::vector<double> ms;
   int same = 0, correct = 0, whole_correct = 0;
   double examined = 0.0;
@@ -511,19 +511,13 @@ nlohmann::json RunPartitions(const placedb::PlaceDatabase& db, const fs::path& d
     for (Worker& w : workers) lists.push_back(answer(w).get<placedb::Shortlist>());
     const std::vector<placedb::ShortlistEntry> candidates =
         placedb::MergeShortlists(lists, options);
-    std::vector<int> asked;
-    for (int p = 0; p < num_parts; ++p) {
-      std::string ids;
-      for (const placedb::ShortlistEntry& c : candidates) {
-        if (placedb::InPartition(c.index, n, p, num_parts, placedb::PartitionScheme::kContiguous))
-          ids += (ids.empty() ? "" : ",") + std::to_string(c.keyframe_id);
-      }
-      if (ids.empty()) continue;
-      ask(workers[p], fmt::format("A {} {}", q, ids));
-      asked.push_back(p);
-    }
+    std::string list;
+    for (const placedb::ShortlistEntry& c : candidates)
+      list += fmt::format("{}{}:{}", list.empty() ? "" : ",", c.index, c.keyframe_id);
+    // An empty list still gets each worker's (empty) answer, as on ROS.
+    for (Worker& w : workers) ask(w, fmt::format("A {} {}", q, list.empty() ? "-" : list));
     std::vector<placedb::QueryResult> parts;
-    for (const int p : asked) parts.push_back(answer(workers[p]).get<placedb::QueryResult>());
+    for (Worker& w : workers) parts.push_back(answer(w).get<placedb::QueryResult>());
     const placedb::QueryResult merged = placedb::MergeQueryResults(parts, options);
     const double elapsed = t.ElapsedMs();
     if (!counted) return;

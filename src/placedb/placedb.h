@@ -19,7 +19,9 @@
 //   Evaluate, RunExperiment, RunBench
 //                        the paper's experiments against ground truth, and
 //                        the speed against the paper's OpenCV matcher
-//   VoteCollector        the bookkeeping of a voting node (distributed search)
+//   VoteCollector        the bookkeeping of a voting node (distributed search;
+//                        bag of words in two rounds)
+//   BowPartitionWorker   a partition's side of those two rounds
 //   OptionTable          every options struct's description (names, defaults,
 //                        ranges, help): X::Table(), for clients that bind
 //                        options (command lines, scripting languages)
@@ -38,6 +40,7 @@
 #include "placedb/dataset/image_folder.h"
 #include "placedb/dataset/match_truth.h"
 #include "placedb/dataset/tum.h"
+#include "placedb/distributed/partition_worker.h"
 #include "placedb/distributed/vote_collector.h"
 #include "placedb/eval/bench.h"
 #include "placedb/eval/evaluate.h"

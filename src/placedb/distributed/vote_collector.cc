@@ -20,12 +20,16 @@ const char* VoteStatusName(VoteStatus status) {
       return "late";
     case VoteStatus::kInconsistent:
       return "inconsistent";
+    case VoteStatus::kUnexpected:
+      return "unexpected";
   }
   return "?";
 }
 
 VoteCollector::VoteCollector(const VoteOptions& options) : options_(options) {
   PLACEDB_CHECK_OPTIONS(options_);
+  two_rounds_ =
+      options_.query.retrieval.method == RetrievalMethod::kBow && options_.num_partitions > 1;
 }
 
 bool VoteCollector::Stale(uint64_t seq, double now_ms) {
@@ -68,7 +72,7 @@ VoteStatus VoteCollector::OnFrame(uint64_t frame_seq, double now_ms, const std::
   newest_announced_ = any_announced_ ? std::max(newest_announced_, frame_seq) : frame_seq;
   any_announced_ = true;
   if (Stale(frame_seq, now_ms)) return VoteStatus::kLate;
-  Pending& p = pending_.try_emplace(frame_seq, Pending{now_ms, false, {}}).first->second;
+  Pending& p = pending_.try_emplace(frame_seq, Pending(now_ms)).first->second;
   p.announced = true;
   return VoteStatus::kAccepted;
 }
@@ -77,7 +81,14 @@ VoteStatus VoteCollector::OnPartial(uint64_t frame_seq, int partition, const Que
                                     double now_ms) {
   if (partition < 0 || partition >= options_.num_partitions) return VoteStatus::kUnknownPartition;
   if (Stale(frame_seq, now_ms)) return VoteStatus::kLate;
-  auto [it, inserted] = pending_.try_emplace(frame_seq, Pending{now_ms, false, {}});
+  if (two_rounds_) {
+    // Only the partitions the candidates were merged from answer, after them.
+    const auto found = pending_.find(frame_seq);
+    if (found == pending_.end() || !found->second.candidates_out ||
+        !found->second.merged.count(partition))
+      return VoteStatus::kUnexpected;
+  }
+  auto [it, inserted] = pending_.try_emplace(frame_seq, Pending(now_ms));
   Pending& p = it->second;
   if (p.partials.count(partition)) return VoteStatus::kDuplicate;
   // What MergeQueryResults refuses is refused here, so that Poll never fails:
@@ -96,6 +107,55 @@ VoteStatus VoteCollector::OnPartial(uint64_t frame_seq, int partition, const Que
   return VoteStatus::kAccepted;
 }
 
+VoteStatus VoteCollector::OnShortlist(uint64_t frame_seq, int partition, const Shortlist& shortlist,
+                                      double now_ms) {
+  if (!two_rounds_) return VoteStatus::kUnexpected;
+  if (partition < 0 || partition >= options_.num_partitions) return VoteStatus::kUnknownPartition;
+  if (Stale(frame_seq, now_ms)) return VoteStatus::kLate;
+  Pending& p = pending_.try_emplace(frame_seq, Pending(now_ms)).first->second;
+  if (p.candidates_out) return VoteStatus::kLate;
+  if (p.shortlists.count(partition)) return VoteStatus::kDuplicate;
+  // What MergeShortlists refuses is refused here, so that PollCandidates
+  // never fails: a keyframe offered twice (by this partition or another)
+  // with other values.
+  for (const auto list : {&Shortlist::bow, &Shortlist::whole_image}) {
+    std::map<uint32_t, const ShortlistEntry*> seen;
+    for (const auto& [other, s] : p.shortlists) {
+      for (const ShortlistEntry& e : s.*list) seen.emplace(e.index, &e);
+    }
+    for (const ShortlistEntry& e : shortlist.*list) {
+      const auto [at, inserted] = seen.emplace(e.index, &e);
+      if (!inserted && !(*at->second == e)) return VoteStatus::kInconsistent;
+    }
+  }
+  p.shortlists.emplace(partition, shortlist);
+  return VoteStatus::kAccepted;
+}
+
+std::vector<FrameCandidates> VoteCollector::PollCandidates(double now_ms) {
+  std::vector<FrameCandidates> out;
+  if (!two_rounds_) return out;
+  for (auto& [seq, p] : pending_) {
+    if (p.candidates_out || p.shortlists.empty()) continue;
+    const bool all = static_cast<int>(p.shortlists.size()) == options_.num_partitions;
+    // Half the deadline for the shortlists, half for the answers.
+    const bool half = now_ms - p.first_seen_ms >= options_.deadline_ms / 2;
+    if (!all && !half) continue;
+    FrameCandidates c;
+    c.frame_seq = seq;
+    std::vector<Shortlist> lists;
+    for (const auto& [partition, list] : p.shortlists) {
+      c.merged.push_back(partition);
+      p.merged.insert(partition);
+      lists.push_back(list);
+    }
+    c.candidates = MergeShortlists(lists, options_.query);
+    p.candidates_out = true;
+    out.push_back(std::move(c));
+  }
+  return out;
+}
+
 FrameAnswer VoteCollector::Answer(uint64_t seq, Pending&& p, double now_ms) {
   FrameAnswer a;
   a.frame_seq = seq;
@@ -109,6 +169,11 @@ FrameAnswer VoteCollector::Answer(uint64_t seq, Pending&& p, double now_ms) {
     if (!p.partials.count(i)) a.missing.push_back(i);
   }
   a.result = MergeQueryResults(parts, options_.query);
+  // Two rounds: the bag-of-words scoring was the shortlists'.
+  for (const auto& [partition, list] : p.shortlists) {
+    a.result.deadline_reached = a.result.deadline_reached || list.deadline_reached;
+    a.result.times.retrieve_ms = std::max(a.result.times.retrieve_ms, list.retrieve_ms);
+  }
   a.waited_ms = std::max(0.0, now_ms - p.first_seen_ms);
   ++stats_.answered;
   ++(a.complete() ? stats_.complete : stats_.partial);
@@ -124,7 +189,10 @@ std::vector<FrameAnswer> VoteCollector::Poll(double now_ms) {
                             : 0;
   size_t evicted = 0;
   for (auto& [seq, p] : pending_) {
-    const bool complete = static_cast<int>(p.partials.size()) == options_.num_partitions;
+    // Two rounds: every partition merged has answered (the others cannot).
+    const bool complete = two_rounds_
+                              ? p.candidates_out && p.partials.size() == p.merged.size()
+                              : static_cast<int>(p.partials.size()) == options_.num_partitions;
     const bool expired = now_ms - p.first_seen_ms >= options_.deadline_ms;
     const bool evict = evicted < excess;  // the oldest first (map order)
     if (complete || expired || evict) {

@@ -4,6 +4,18 @@
 // deadline passes with what has arrived (naming the partitions that did not
 // answer). Answers are merged by MergeQueryResults, the same voting function
 // as the threaded query, so a complete answer equals the whole database's.
+//
+// Bag-of-words search (query.retrieval.method kBow, more than one
+// partition) takes two rounds, because a partition's own best candidates
+// are not the whole database's (query/result.h, MergeShortlists): every
+// partition first sends its shortlist (OnShortlist); when all have, or at
+// half the deadline with those that have, PollCandidates merges them into
+// the candidates the whole database's search examines, for the transport to
+// send to every partition; each then answers its share of them (OnPartial,
+// an empty result when it holds none). A partition whose shortlist missed
+// the merge cannot answer the frame (its keyframes were not considered):
+// its answer is refused and the frame is answered without it, as missing.
+// BowPartitionWorker (partition_worker.h) is a partition's side.
 // Not thread-safe: one caller (the voter's event loop).
 #pragma once
 
@@ -54,8 +66,12 @@ enum class VoteStatus {
   kUnknownPartition,  // partition >= num_partitions
   kLate,              // the frame was answered already (complete, deadline, or evicted)
   kInconsistent,      // a keyframe twice (in it, or in another partition's result for the
-                      // frame), or verified where the vote does not verify (or the reverse):
-                      // it cannot be merged, so the frame is answered without it
+                      // frame), or verified where the vote does not verify (or the reverse);
+                      // a shortlist entry that another partition's shortlist gives other
+                      // values: it cannot be merged, so the frame is answered without it
+  kUnexpected,        // not asked for: a shortlist when the vote takes one round; in two
+                      // rounds, an answer before the frame's candidates (a worker answering
+                      // in one round) or from a partition whose shortlist missed the merge
 };
 const char* VoteStatusName(VoteStatus status);
 
@@ -67,6 +83,13 @@ struct FrameAnswer {
   std::vector<int> missing;   // partitions that did not
   bool complete() const { return missing.empty(); }
   double waited_ms = 0.0;  // from first sight of the frame to the answer
+};
+
+// The candidates of one frame in a two-round vote, for every partition.
+struct FrameCandidates {
+  uint64_t frame_seq = 0;
+  std::vector<ShortlistEntry> candidates;  // MergeShortlists of the shortlists below
+  std::vector<int> merged;                 // partitions whose shortlists were merged, ascending
 };
 
 // What the collector has done since it started: the voter reports it.
@@ -92,9 +115,21 @@ class VoteCollector {
   // with what they have, under their run's id; the new run's frames are
   // never refused as late because of the old run's numbers.
   VoteStatus OnFrame(uint64_t frame_seq, double now_ms, const std::string& run = "");
-  // A partial result of `partition` for the frame.
+  // A partial result of `partition` for the frame (in two rounds: its
+  // answer over its share of the frame's candidates).
   VoteStatus OnPartial(uint64_t frame_seq, int partition, const QueryResult& partial,
                        double now_ms);
+  // Two rounds: the shortlist of `partition` for the frame (kUnexpected when
+  // the vote takes one round; kLate once the frame's candidates are out).
+  VoteStatus OnShortlist(uint64_t frame_seq, int partition, const Shortlist& shortlist,
+                         double now_ms);
+  // Two rounds: the frames whose candidates are ready at `now_ms` (every
+  // partition's shortlist in, or half the deadline gone with at least one),
+  // in frame order, each once. A frame without any shortlist by its
+  // deadline is answered by Poll, every partition missing.
+  std::vector<FrameCandidates> PollCandidates(double now_ms);
+  // The vote takes two rounds (bag of words over more than one partition).
+  bool two_rounds() const { return two_rounds_; }
   // The frames that are ready at `now_ms` (complete, or past their deadline,
   // or evicted), in frame order. Each frame is answered once.
   std::vector<FrameAnswer> Poll(double now_ms);
@@ -110,9 +145,15 @@ class VoteCollector {
 
  private:
   struct Pending {
+    explicit Pending(double first_seen) : first_seen_ms(first_seen) {}
     double first_seen_ms = 0.0;
-    bool announced = false;  // by OnFrame (else seen only through partial results)
+    bool announced = false;               // by OnFrame (else seen only through partial results)
     std::map<int, QueryResult> partials;  // by partition
+    // Two rounds: the shortlists so far, by partition; once the candidates
+    // are out, the partitions merged (the answers expected).
+    std::map<int, Shortlist> shortlists;
+    bool candidates_out = false;
+    std::set<int> merged;
   };
   FrameAnswer Answer(uint64_t seq, Pending&& p, double now_ms);
   // Answers every pending frame now (into flushed_) and forgets the numbers
@@ -128,8 +169,9 @@ class VoteCollector {
   bool Stale(uint64_t seq, double now_ms);
 
   VoteOptions options_;
+  bool two_rounds_ = false;
   std::map<uint64_t, Pending> pending_;
-  std::set<uint64_t> answered_;  // numbers answered in this run (the last max_pending)
+  std::set<uint64_t> answered_;       // numbers answered in this run (the last max_pending)
   std::vector<FrameAnswer> flushed_;  // answered by StartOver, returned by the next Poll
   bool any_answered_ = false;
   uint64_t newest_answered_ = 0;

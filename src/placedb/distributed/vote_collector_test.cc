@@ -409,5 +409,117 @@ TEST(VoteCollectorTest, CompleteAnswersEqualTheWholeDatabase) {
   }
 }
 
+// Two rounds (bag of words, more than one partition).
+VoteOptions TwoRounds(int partitions) {
+  VoteOptions o;
+  o.num_partitions = partitions;
+  o.deadline_ms = 100;
+  o.query.retrieval.method = RetrievalMethod::kBow;
+  o.query.retrieval.bow_candidates = 2;
+  o.query.retrieval.guided_candidates = 0;
+  return o;
+}
+
+// A shortlist of keyframes (index, bag-of-words score); ids are index + 1.
+Shortlist Listed(std::vector<std::pair<uint32_t, double>> entries) {
+  Shortlist s;
+  for (const auto& [index, score] : entries)
+    s.bow.push_back({index, static_cast<int32_t>(index + 1), score, -1});
+  return s;
+}
+
+// The candidates go out once every shortlist is in, merged as the whole
+// database's search would pick them; only then are answers taken, and the
+// frame is answered when every partition has answered.
+TEST(VoteCollectorTest, TwoRoundsSendCandidatesThenAnswer) {
+  VoteCollector c(TwoRounds(2));
+  ASSERT_TRUE(c.two_rounds());
+  c.OnFrame(4, 0.0);
+  const Shortlist a = Listed({{0, 0.9}, {1, 0.2}}), b = Listed({{20, 0.5}, {21, 0.4}});
+  EXPECT_EQ(c.OnShortlist(4, 0, a, 1.0), VoteStatus::kAccepted);
+  EXPECT_EQ(c.OnShortlist(4, 0, a, 1.0), VoteStatus::kDuplicate);
+  EXPECT_EQ(c.OnShortlist(4, 2, b, 1.0), VoteStatus::kUnknownPartition);
+  EXPECT_EQ(c.OnPartial(4, 0, Partial(1, 30, 20), 1.5), VoteStatus::kUnexpected);
+  EXPECT_TRUE(c.PollCandidates(2.0).empty());
+  EXPECT_EQ(c.OnShortlist(4, 1, b, 2.0), VoteStatus::kAccepted);
+  const std::vector<FrameCandidates> out = c.PollCandidates(2.0);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].frame_seq, 4u);
+  EXPECT_EQ(out[0].merged, (std::vector<int>{0, 1}));
+  EXPECT_EQ(out[0].candidates, MergeShortlists({a, b}, TwoRounds(2).query));
+  ASSERT_EQ(out[0].candidates.size(), 2u);  // the best 2 of the union
+  EXPECT_EQ(out[0].candidates[0].index, 0u);
+  EXPECT_EQ(out[0].candidates[1].index, 20u);
+  EXPECT_TRUE(c.PollCandidates(3.0).empty());  // once
+  EXPECT_EQ(c.OnShortlist(4, 1, b, 3.0), VoteStatus::kLate);
+  EXPECT_EQ(c.OnPartial(4, 1, Partial(21, 40, 30), 4.0), VoteStatus::kAccepted);
+  EXPECT_TRUE(c.Poll(4.0).empty());
+  EXPECT_EQ(c.OnPartial(4, 0, Partial(1, 30, 20), 5.0), VoteStatus::kAccepted);
+  const std::vector<FrameAnswer> ready = c.Poll(5.0);
+  ASSERT_EQ(ready.size(), 1u);
+  EXPECT_TRUE(ready[0].complete());
+  EXPECT_EQ(ready[0].result.best()->keyframe_id, 21);
+  // One round (exhaustive, or one partition): shortlists are not asked for.
+  VoteCollector one(Three());
+  EXPECT_FALSE(one.two_rounds());
+  EXPECT_EQ(one.OnShortlist(4, 0, a, 0.0), VoteStatus::kUnexpected);
+  EXPECT_TRUE(one.PollCandidates(1000.0).empty());
+  EXPECT_FALSE(VoteCollector(TwoRounds(1)).two_rounds());
+}
+
+// At half the deadline the shortlists in are merged; a partition that had
+// not sent its shortlist cannot answer (its keyframes were not considered),
+// so the frame is answered as soon as the others have, without it.
+TEST(VoteCollectorTest, AShortlistMissingAtHalfTheDeadline) {
+  VoteCollector c(TwoRounds(3));
+  c.OnFrame(9, 0.0);
+  EXPECT_EQ(c.OnShortlist(9, 0, Listed({{0, 0.9}}), 0.0), VoteStatus::kAccepted);
+  EXPECT_EQ(c.OnShortlist(9, 1, Listed({{15, 0.8}}), 0.0), VoteStatus::kAccepted);
+  EXPECT_TRUE(c.PollCandidates(49.0).empty());
+  const std::vector<FrameCandidates> out = c.PollCandidates(50.0);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].merged, (std::vector<int>{0, 1}));
+  EXPECT_EQ(c.OnShortlist(9, 2, Listed({{30, 0.99}}), 51.0), VoteStatus::kLate);
+  EXPECT_EQ(c.OnPartial(9, 2, Partial(31, 50, 45), 52.0), VoteStatus::kUnexpected);
+  EXPECT_EQ(c.OnPartial(9, 0, Partial(1, 30, 20), 53.0), VoteStatus::kAccepted);
+  EXPECT_TRUE(c.Poll(53.0).empty());
+  EXPECT_EQ(c.OnPartial(9, 1, Partial(16, 30, 25), 54.0), VoteStatus::kAccepted);
+  const std::vector<FrameAnswer> ready = c.Poll(54.0);
+  ASSERT_EQ(ready.size(), 1u);
+  EXPECT_FALSE(ready[0].complete());
+  EXPECT_EQ(ready[0].answered, (std::vector<int>{0, 1}));
+  EXPECT_EQ(ready[0].missing, (std::vector<int>{2}));
+  EXPECT_EQ(ready[0].result.best()->keyframe_id, 16);
+  // No shortlist by the deadline: answered by Poll, every partition missing.
+  c.OnFrame(10, 100.0);
+  EXPECT_TRUE(c.PollCandidates(160.0).empty());
+  const std::vector<FrameAnswer> empty = c.Poll(200.0);
+  ASSERT_EQ(empty.size(), 1u);
+  EXPECT_EQ(empty[0].missing, (std::vector<int>{0, 1, 2}));
+  EXPECT_FALSE(empty[0].result.matched);
+}
+
+// What MergeShortlists would refuse is refused as it arrives (a keyframe
+// offered with other values); a shortlist cut by its deadline marks the
+// answer, whose retrieval time is the slowest shortlist's.
+TEST(VoteCollectorTest, ShortlistsThatCannotBeMergedAreRefused) {
+  VoteCollector c(TwoRounds(2));
+  EXPECT_EQ(c.OnShortlist(1, 0, Listed({{5, 0.5}}), 0.0), VoteStatus::kAccepted);
+  EXPECT_EQ(c.OnShortlist(1, 1, Listed({{5, 0.6}}), 0.0), VoteStatus::kInconsistent);
+  EXPECT_EQ(c.OnShortlist(1, 1, Listed({{6, 0.6}, {6, 0.7}}), 0.0), VoteStatus::kInconsistent);
+  Shortlist late = Listed({{5, 0.5}, {25, 0.4}});  // the same entry twice is no conflict
+  late.deadline_reached = true;
+  late.retrieve_ms = 7.5;
+  EXPECT_EQ(c.OnShortlist(1, 1, late, 0.0), VoteStatus::kAccepted);
+  ASSERT_EQ(c.PollCandidates(0.0).size(), 1u);
+  EXPECT_EQ(c.OnPartial(1, 0, Partial(6, 20, 15), 0.0), VoteStatus::kAccepted);
+  EXPECT_EQ(c.OnPartial(1, 1, QueryResult(), 0.0), VoteStatus::kAccepted);
+  const std::vector<FrameAnswer> ready = c.Poll(0.0);
+  ASSERT_EQ(ready.size(), 1u);
+  EXPECT_TRUE(ready[0].complete());
+  EXPECT_TRUE(ready[0].result.deadline_reached);
+  EXPECT_DOUBLE_EQ(ready[0].result.times.retrieve_ms, 7.5);
+}
+
 }  // namespace
 }  // namespace placedb

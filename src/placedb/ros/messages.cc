@@ -3,7 +3,6 @@
 #include <cmath>
 #include <cstring>
 
-
 namespace placedb {
 namespace {
 
@@ -20,6 +19,52 @@ placedb_msgs::RankedKeyframe RankedToMessage(const RankedKeyframe& k) {
   m.num_matches = k.num_matches;
   m.num_inliers = k.num_inliers;
   return m;
+}
+
+// The split a message names: partition < num_partitions <= 4096 and a known
+// scheme.
+void CheckSplit(uint32_t partition, uint32_t num_partitions, const std::string& scheme) {
+  if (num_partitions < 1 || num_partitions > 4096 || partition >= num_partitions)
+    Bad("partition", std::to_string(partition) + " of " + std::to_string(num_partitions));
+  if (scheme != "contiguous" && scheme != "interleaved")
+    Bad("scheme", "'" + scheme.substr(0, 16) + "'");
+}
+
+std::vector<placedb_msgs::ShortlistEntry> EntriesToMessage(const std::vector<ShortlistEntry>& in) {
+  std::vector<placedb_msgs::ShortlistEntry> out(in.size());
+  for (size_t i = 0; i < in.size(); ++i) {
+    out[i].index = in[i].index;
+    out[i].keyframe_id = in[i].keyframe_id;
+    out[i].score = in[i].score;
+    out[i].guided = in[i].guided;
+  }
+  return out;
+}
+
+std::vector<ShortlistEntry> EntriesFromMessage(const std::vector<placedb_msgs::ShortlistEntry>& in,
+                                               const char* what) {
+  if (in.size() > 100000) Bad(what, "more than 100000 keyframes");
+  std::vector<ShortlistEntry> out(in.size());
+  for (size_t i = 0; i < in.size(); ++i) {
+    if (!std::isfinite(in[i].score) || in[i].guided < -1)
+      Bad(what, "impossible values for keyframe " + std::to_string(in[i].keyframe_id));
+    out[i] = {in[i].index, in[i].keyframe_id, in[i].score, in[i].guided};
+  }
+  return out;
+}
+
+// What a worker's message starts with: the frame, the database it serves
+// and its partition (0 of 1 for the whole database).
+template <typename Message>
+void SetWorkerFields(Message* m, const std_msgs::Header& header, uint64_t frame_seq,
+                     const KeyframeSubset& partition, const std::string& database_id) {
+  const bool part = partition.kind == KeyframeSubset::Kind::kPartition;
+  m->header = header;
+  m->frame_seq = frame_seq;
+  m->database_id = database_id;
+  m->partition = static_cast<uint32_t>(part ? partition.part : 0);
+  m->num_partitions = static_cast<uint32_t>(part ? partition.num_parts : 1);
+  m->scheme = PartitionSchemeName(partition.scheme);
 }
 
 }  // namespace
@@ -101,14 +146,7 @@ placedb_msgs::PartialResult PartialToMessage(const QueryResult& r, uint64_t fram
                                              const KeyframeSubset& partition,
                                              const std::string& database_id) {
   placedb_msgs::PartialResult m;
-  m.header = header;
-  m.frame_seq = frame_seq;
-  m.database_id = database_id;
-  m.partition = static_cast<uint32_t>(
-      partition.kind == KeyframeSubset::Kind::kPartition ? partition.part : 0);
-  m.num_partitions = static_cast<uint32_t>(
-      partition.kind == KeyframeSubset::Kind::kPartition ? partition.num_parts : 1);
-  m.scheme = PartitionSchemeName(partition.scheme);
+  SetWorkerFields(&m, header, frame_seq, partition, database_id);
   for (const RankedKeyframe& k : r.ranked) m.ranked.push_back(RankedToMessage(k));
   m.num_query_features = r.num_query_features;
   m.num_keyframes = r.num_keyframes;
@@ -123,10 +161,7 @@ placedb_msgs::PartialResult PartialToMessage(const QueryResult& r, uint64_t fram
 }
 
 QueryResult PartialFromMessage(const placedb_msgs::PartialResult& m) {
-  if (m.num_partitions < 1 || m.num_partitions > 4096 || m.partition >= m.num_partitions)
-    Bad("partition", std::to_string(m.partition) + " of " + std::to_string(m.num_partitions));
-  if (m.scheme != "contiguous" && m.scheme != "interleaved")
-    Bad("scheme", "'" + m.scheme.substr(0, 16) + "'");
+  CheckSplit(m.partition, m.num_partitions, m.scheme);
   if (m.ranked.size() > 10000) Bad("ranked", "more than 10000 keyframes");
   QueryResult r;
   for (const auto& k : m.ranked) {
@@ -156,6 +191,59 @@ QueryResult PartialFromMessage(const placedb_msgs::PartialResult& m) {
   r.times.verify_ms = m.verify_ms;
   r.times.total_ms = m.total_ms;
   return r;
+}
+
+placedb_msgs::Shortlist ShortlistToMessage(const Shortlist& s, uint64_t frame_seq,
+                                           const std_msgs::Header& header,
+                                           const KeyframeSubset& partition,
+                                           const std::string& database_id) {
+  placedb_msgs::Shortlist m;
+  SetWorkerFields(&m, header, frame_seq, partition, database_id);
+  m.bow = EntriesToMessage(s.bow);
+  m.whole_image = EntriesToMessage(s.whole_image);
+  m.deadline_reached = s.deadline_reached;
+  m.retrieve_ms = s.retrieve_ms;
+  return m;
+}
+
+Shortlist ShortlistFromMessage(const placedb_msgs::Shortlist& m) {
+  CheckSplit(m.partition, m.num_partitions, m.scheme);
+  if (!std::isfinite(m.retrieve_ms) || m.retrieve_ms < 0) Bad("times", "not finite and >= 0");
+  Shortlist s;
+  s.bow = EntriesFromMessage(m.bow, "shortlist");
+  s.whole_image = EntriesFromMessage(m.whole_image, "shortlist");
+  s.deadline_reached = m.deadline_reached;
+  s.retrieve_ms = m.retrieve_ms;
+  return s;
+}
+
+placedb_msgs::Candidates CandidatesToMessage(const FrameCandidates& c,
+                                             const std_msgs::Header& header, int num_partitions,
+                                             PartitionScheme scheme,
+                                             const std::string& database_id) {
+  placedb_msgs::Candidates m;
+  m.header = header;
+  m.frame_seq = c.frame_seq;
+  m.database_id = database_id;
+  m.num_partitions = static_cast<uint32_t>(num_partitions);
+  m.scheme = PartitionSchemeName(scheme);
+  for (const int p : c.merged) m.partitions.push_back(static_cast<uint32_t>(p));
+  m.candidates = EntriesToMessage(c.candidates);
+  return m;
+}
+
+FrameCandidates CandidatesFromMessage(const placedb_msgs::Candidates& m) {
+  CheckSplit(0, m.num_partitions, m.scheme);
+  FrameCandidates c;
+  c.frame_seq = m.frame_seq;
+  for (size_t i = 0; i < m.partitions.size(); ++i) {
+    if (m.partitions[i] >= m.num_partitions || (i > 0 && m.partitions[i - 1] >= m.partitions[i]))
+      Bad("partition",
+          "the merged partitions must be ascending and below " + std::to_string(m.num_partitions));
+    c.merged.push_back(static_cast<int>(m.partitions[i]));
+  }
+  c.candidates = EntriesFromMessage(m.candidates, "candidates");
+  return c;
 }
 
 placedb_msgs::Answer AnswerToMessage(const FrameAnswer& a, const PlaceDatabase& keyframes,

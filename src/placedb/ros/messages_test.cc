@@ -7,8 +7,8 @@
 #include <cmath>
 #include <opencv2/imgcodecs.hpp>
 
-#include "placedb/feature/extractor.h"
 #include "placedb/dataset/bag/image_message.h"
+#include "placedb/feature/extractor.h"
 #include "placedb/ros/node_common.h"
 #include "placedb/util/testing.h"
 
@@ -96,6 +96,64 @@ TEST(RosMessagesTest, PartialResultsRoundTripAndAreChecked) {
   EXPECT_TRUE(fails([](auto& b) { b.ranked[0].score = std::nan(""); }, "ranked keyframe"));
   EXPECT_TRUE(fails([](auto& b) { b.ranked[0].score = 99; }, "ranked keyframe"));
   EXPECT_TRUE(fails([](auto& b) { b.match_ms = -1; }, "times"));
+}
+
+// The two rounds of bag-of-words search: a worker's shortlist and the
+// voter's candidates go over and back whole, and malformed ones are refused.
+TEST(RosMessagesTest, ShortlistsAndCandidatesRoundTripAndAreChecked) {
+  Shortlist s;
+  s.bow = {{7, 8, 0.25, 12}, {3, 4, 0.125, -1}};
+  s.whole_image = {{9, 10, 0.5, -1}};
+  s.deadline_reached = true;
+  s.retrieve_ms = 2.5;
+  const placedb_msgs::Shortlist m =
+      ShortlistToMessage(s, 9, std_msgs::Header(),
+                         KeyframeSubset::Partition(2, 3, PartitionScheme::kInterleaved), "k.bin");
+  EXPECT_EQ(m.partition, 2u);
+  EXPECT_EQ(m.num_partitions, 3u);
+  EXPECT_EQ(m.scheme, "interleaved");
+  EXPECT_EQ(m.frame_seq, 9u);
+  const Shortlist back = ShortlistFromMessage(m);
+  EXPECT_EQ(back.bow, s.bow);
+  EXPECT_EQ(back.whole_image, s.whole_image);
+  EXPECT_TRUE(back.deadline_reached);
+  EXPECT_EQ(back.retrieve_ms, 2.5);
+  auto fails = [&](const std::function<void(placedb_msgs::Shortlist&)>& edit,
+                   const std::string& cause) {
+    placedb_msgs::Shortlist bad = m;
+    edit(bad);
+    return ThrowsWith<InvalidArgument>([&] { ShortlistFromMessage(bad); }, cause);
+  };
+  EXPECT_TRUE(fails([](auto& b) { b.partition = 3; }, "partition"));
+  EXPECT_TRUE(fails([](auto& b) { b.scheme = "random"; }, "scheme"));
+  EXPECT_TRUE(fails([](auto& b) { b.bow[1].score = std::nan(""); }, "shortlist"));
+  EXPECT_TRUE(fails([](auto& b) { b.whole_image[0].guided = -2; }, "shortlist"));
+  EXPECT_TRUE(fails([](auto& b) { b.bow.resize(100001); }, "shortlist"));
+  EXPECT_TRUE(fails([](auto& b) { b.retrieve_ms = -1; }, "times"));
+
+  FrameCandidates c;
+  c.frame_seq = 11;
+  c.merged = {0, 2};
+  c.candidates = s.bow;
+  const placedb_msgs::Candidates cm =
+      CandidatesToMessage(c, std_msgs::Header(), 3, PartitionScheme::kContiguous, "k.bin");
+  EXPECT_EQ(cm.num_partitions, 3u);
+  EXPECT_EQ(cm.scheme, "contiguous");
+  const FrameCandidates cback = CandidatesFromMessage(cm);
+  EXPECT_EQ(cback.frame_seq, 11u);
+  EXPECT_EQ(cback.merged, c.merged);
+  EXPECT_EQ(cback.candidates, c.candidates);
+  auto refused = [&](const std::function<void(placedb_msgs::Candidates&)>& edit,
+                     const std::string& cause) {
+    placedb_msgs::Candidates bad = cm;
+    edit(bad);
+    return ThrowsWith<InvalidArgument>([&] { CandidatesFromMessage(bad); }, cause);
+  };
+  EXPECT_TRUE(refused([](auto& b) { b.num_partitions = 0; }, "partition"));
+  EXPECT_TRUE(refused([](auto& b) { b.partitions = {0, 3}; }, "partition"));
+  EXPECT_TRUE(refused([](auto& b) { b.partitions = {2, 0}; }, "partition"));
+  EXPECT_TRUE(refused([](auto& b) { b.scheme = ""; }, "scheme"));
+  EXPECT_TRUE(refused([](auto& b) { b.candidates[0].score = INFINITY; }, "candidates"));
 }
 
 TEST(RosMessagesTest, ImagesAreChecked) {

@@ -22,8 +22,8 @@
 #include <rosbag/bag.h>
 #include <sensor_msgs/CompressedImage.h>
 #include <sensor_msgs/Image.h>
-#include <std_msgs/String.h>
 #include <signal.h>
+#include <std_msgs/String.h>
 #include <sys/wait.h>
 #include <tf2_msgs/TFMessage.h>
 #include <unistd.h>
@@ -38,14 +38,15 @@
 #include <opencv2/imgcodecs.hpp>
 #include <thread>
 
-#include "placedb/dataset/image_folder.h"
 #include "placedb/builder/builder.h"
-#include "placedb/session/place_database.h"
+#include "placedb/builder/testing.h"
 #include "placedb/dataset/bag/image_message.h"
-#include "placedb/ros/messages.h"
+#include "placedb/dataset/image_folder.h"
 #include "placedb/query/query.h"
+#include "placedb/ros/messages.h"
 #include "placedb/ros/system_testing.h"
 #include "placedb/ros/testbed.h"
+#include "placedb/session/place_database.h"
 #include "placedb/util/file_io.h"
 #include "placedb/util/testing.h"
 
@@ -130,12 +131,13 @@ TEST_F(RosSystemTest, AnswersEqualTheSingleProcessQuery) {
           "full_worker" + std::to_string(i) + ".log", ns);
   }
   // 3 workers + the gate.
-  const pid_t feed = Start({"placedb_feed", "--images", kImages, "--first", "41", "--wait-for", "4",
-                            "--rate", "0", "--answer-timeout-ms", kNoDeadline, "--log-file",
-                            Path("full_feed.jsonl")},
-                           "full_feed.log", ns);
-  ASSERT_TRUE(WaitLinked({ns + "/placedb_worker_0", ns + "/placedb_worker_1", ns + "/placedb_worker_2"},
-                         ns + "/partial_results", {ns + "/placedb_voter"}))
+  const pid_t feed =
+      Start({"placedb_feed", "--images", kImages, "--first", "41", "--wait-for", "4", "--rate", "0",
+             "--answer-timeout-ms", kNoDeadline, "--log-file", Path("full_feed.jsonl")},
+            "full_feed.log", ns);
+  ASSERT_TRUE(
+      WaitLinked({ns + "/placedb_worker_0", ns + "/placedb_worker_1", ns + "/placedb_worker_2"},
+                 ns + "/partial_results", {ns + "/placedb_voter"}))
       << ReadLog("full_voter.log") << ReadLog("full_worker0.log");
   ASSERT_TRUE(WaitLinked({ns + "/placedb_voter"}, ns + "/answers", {ns + "/placedb_feed"}))
       << ReadLog("full_feed.log");
@@ -157,7 +159,8 @@ TEST_F(RosSystemTest, AnswersEqualTheSingleProcessQuery) {
     return announced.size() >= 44;
   }));
   ASSERT_EQ(announced.size(), 44u);
-  for (uint32_t i = 0; i < announced.size(); ++i) EXPECT_EQ(announced[i], i) << "announcement " << i;
+  for (uint32_t i = 0; i < announced.size(); ++i)
+    EXPECT_EQ(announced[i], i) << "announcement " << i;
   const std::vector<nlohmann::json> answers = WaitLines(Path("full_answers.jsonl"), 44);
   ASSERT_EQ(answers.size(), 44u) << ReadLog("full_voter.log");
   const std::vector<QueryResult> expected = SingleProcess(QueryOptions());
@@ -206,6 +209,69 @@ TEST_F(RosSystemTest, WorkersOnExtractedFeatures) {
     EXPECT_TRUE(a["complete"].get<bool>());
     ExpectSameAnswer(a, expected[a["frame_seq"].get<uint64_t>()], "frame");
   }
+}
+
+// Bag of words over 3 workers takes two rounds (shortlists, the voter's
+// candidates, each worker's share): every answer is complete and equals the
+// single-process bag-of-words query, with few candidates, where a
+// partition's own best are often not the whole database's (the one-round
+// merge differs on this data: PartitionWorkerTest).
+TEST_F(RosSystemTest, BagOfWordsAnswersEqualTheSingleProcessQueryInTwoRounds) {
+  const std::string ns = "/bow";
+  const std::string db = Path("bow_db");
+  testing_util::BuildSampleDatabase(db);
+  const std::vector<std::string> search = {
+      "--search", "bow", "--bow-candidates", "8", "--guided-candidates", "3"};
+  std::vector<std::string> voter = {"placedb_voter",
+                                    "--db",
+                                    db,
+                                    "--partitions",
+                                    "3",
+                                    "--partition-scheme",
+                                    "interleaved",
+                                    "--deadline-ms",
+                                    kNoDeadline,
+                                    "--answers-file",
+                                    Path("bow_answers.jsonl")};
+  voter.insert(voter.end(), search.begin(), search.end());
+  Start(voter, "bow_voter.log", ns);
+  std::vector<std::string> workers;
+  for (int i = 0; i < 3; ++i) {
+    std::vector<std::string> worker = {
+        "placedb_worker",     "--db",       db, "--partition", std::to_string(i) + "/3",
+        "--partition-scheme", "interleaved"};
+    worker.insert(worker.end(), search.begin(), search.end());
+    Start(worker, "bow_worker" + std::to_string(i) + ".log", ns);
+    workers.push_back(ns + "/placedb_worker_" + std::to_string(i));
+  }
+  // 3 workers + the gate.
+  const pid_t feed = Start({"placedb_feed", "--images", kImages, "--first", "41", "--wait-for", "4",
+                            "--rate", "0", "--answer-timeout-ms", kNoDeadline},
+                           "bow_feed.log", ns);
+  ASSERT_TRUE(WaitLinked(workers, ns + "/shortlists", {ns + "/placedb_voter"}))
+      << ReadLog("bow_voter.log") << ReadLog("bow_worker0.log");
+  ASSERT_TRUE(WaitLinked({ns + "/placedb_voter"}, ns + "/candidates", workers))
+      << ReadLog("bow_voter.log") << ReadLog("bow_worker0.log");
+  ASSERT_TRUE(WaitLinked(workers, ns + "/partial_results", {ns + "/placedb_voter"}))
+      << ReadLog("bow_voter.log");
+  ASSERT_TRUE(WaitLinked({ns + "/placedb_voter"}, ns + "/answers", {ns + "/placedb_feed"}))
+      << ReadLog("bow_feed.log");
+  const ros::Subscriber gate = OpenGate(ns);
+  ASSERT_EQ(WaitExit(feed, kRunLimit), 0) << ReadLog("bow_feed.log");
+  const std::vector<nlohmann::json> answers = WaitLines(Path("bow_answers.jsonl"), 44);
+  ASSERT_EQ(answers.size(), 44u) << ReadLog("bow_voter.log");
+  QueryOptions bow;
+  bow.retrieval.method = RetrievalMethod::kBow;
+  bow.retrieval.bow_candidates = 8;
+  bow.retrieval.guided_candidates = 3;
+  const std::vector<QueryResult> expected = ros_testing::SingleProcess(db, kImages, 41, 84, bow);
+  for (const nlohmann::json& a : answers) {
+    const uint64_t seq = a["frame_seq"];
+    ASSERT_LT(seq, 44u);
+    EXPECT_TRUE(a["complete"].get<bool>()) << "frame " << seq;
+    ExpectSameAnswer(a, expected[seq], "frame " + std::to_string(seq));
+  }
+  EXPECT_NE(ReadLog("bow_worker0.log").find("two rounds"), std::string::npos);
 }
 
 // The voter with --sequence: each answer equals the single-process answers
@@ -303,7 +369,8 @@ TEST_F(RosSystemTest, MalformedMessagesAreDroppedOncePerCause) {
   ASSERT_TRUE(WaitLinked({me}, ns + "/features", {ns + "/features_worker"}));
   ASSERT_TRUE(WaitLinked({me}, ns + "/partial_results", {ns + "/placedb_voter"}));
   ASSERT_TRUE(WaitLinked({me}, ns + "/frames", {ns + "/placedb_voter"}));
-  ASSERT_TRUE(WaitLinked({ns + "/placedb_worker_0"}, ns + "/partial_results", {ns + "/placedb_voter"}));
+  ASSERT_TRUE(
+      WaitLinked({ns + "/placedb_worker_0"}, ns + "/partial_results", {ns + "/placedb_voter"}));
   const cv::Mat good = cv::imread(testing_util::RtabmapImage(42));
   std_msgs::Header h;
   sensor_msgs::Image wrong_encoding = BgrToImageMessage(good, h);
@@ -341,18 +408,23 @@ TEST_F(RosSystemTest, MalformedMessagesAreDroppedOncePerCause) {
     });
     for (int repeat = 0; repeat < 4; ++repeat) {
       send();
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));  // spaced, not a wait for anything
+      std::this_thread::sleep_for(
+          std::chrono::milliseconds(20));  // spaced, not a wait for anything
     }
     return logged;
   };
-  EXPECT_TRUE(until_logged([&] { images.publish(wrong_encoding); }, "hostile_worker.log", "(image encoding"));
+  EXPECT_TRUE(until_logged([&] { images.publish(wrong_encoding); }, "hostile_worker.log",
+                           "(image encoding"));
   EXPECT_TRUE(until_logged([&] { images.publish(huge); }, "hostile_worker.log", "(image size"));
-  EXPECT_TRUE(until_logged([&] { images.publish(short_data); }, "hostile_worker.log", "(image data"));
-  EXPECT_TRUE(until_logged([&] { partials.publish(unknown_partition); }, "hostile_voter.log", "(partition"));
+  EXPECT_TRUE(
+      until_logged([&] { images.publish(short_data); }, "hostile_worker.log", "(image data"));
+  EXPECT_TRUE(until_logged([&] { partials.publish(unknown_partition); }, "hostile_voter.log",
+                           "(partition"));
   EXPECT_TRUE(until_logged([&] { partials.publish(other_db); }, "hostile_voter.log", "(database"));
   EXPECT_TRUE(until_logged([&] { features.publish(surf); }, "hostile_features_worker.log",
                            "(the query has surf features"));
-  EXPECT_TRUE(until_logged([&] { features.publish(broken); }, "hostile_features_worker.log", "(descriptors"));
+  EXPECT_TRUE(until_logged([&] { features.publish(broken); }, "hostile_features_worker.log",
+                           "(descriptors"));
   // A good frame after all that is answered. (roscpp numbers each
   // publisher's messages: the bad images went before it, so its number for
   // the worker is not its announcement's; the voter answers it when the
@@ -410,8 +482,9 @@ TEST_F(RosSystemTest, MalformedMessagesAreDroppedOncePerCause) {
   EXPECT_NE(at_shutdown.find("(at shutdown)"), std::string::npos) << at_shutdown;
   const size_t line = at_shutdown.rfind("dropped: ");
   ASSERT_NE(line, std::string::npos) << at_shutdown;
-  EXPECT_NE(at_shutdown.find("database " + std::to_string(stats["dropped"]["database"].get<int>()), line),
-            std::string::npos)
+  EXPECT_NE(
+      at_shutdown.find("database " + std::to_string(stats["dropped"]["database"].get<int>()), line),
+      std::string::npos)
       << at_shutdown;
   EXPECT_NE(at_shutdown.find("partition ", line), std::string::npos) << at_shutdown;
   const std::string features_log = ReadLog("hostile_features_worker.log");
@@ -430,14 +503,15 @@ TEST_F(RosSystemTest, TheLaunchFileRunsTheSystem) {
   const char* prefix = std::getenv("CMAKE_PREFIX_PATH");
   ::setenv("CMAKE_PREFIX_PATH", (tree + (prefix ? std::string(":") + prefix : "")).c_str(), 1);
   const std::string ns = "/launched";
-  const pid_t launch = Start(
-      {"roslaunch", "placedb", "placedb.launch", "db:=" + Db(), "workers:=2", "input:=features",
-       "deadline_ms:=" + kNoDeadline, "images:=" + kImages,
-       "answers_file:=" + Path("launch_answers.jsonl"), "feed_required:=true",
-       "feed_args:=--rate 0 --first 70 --answer-timeout-ms " + kNoDeadline},
-      "launch.log", ns);
+  const pid_t launch =
+      Start({"roslaunch", "placedb", "placedb.launch", "db:=" + Db(), "workers:=2",
+             "input:=features", "deadline_ms:=" + kNoDeadline, "images:=" + kImages,
+             "answers_file:=" + Path("launch_answers.jsonl"), "feed_required:=true",
+             "feed_args:=--rate 0 --first 70 --answer-timeout-ms " + kNoDeadline},
+            "launch.log", ns);
   const std::vector<std::string> workers = {ns + "/placedb_worker_0", ns + "/placedb_worker_1"};
-  ASSERT_TRUE(WaitLinked({ns + "/placedb_extractor"}, ns + "/features", workers)) << ReadLog("launch.log");
+  ASSERT_TRUE(WaitLinked({ns + "/placedb_extractor"}, ns + "/features", workers))
+      << ReadLog("launch.log");
   ASSERT_TRUE(WaitLinked(workers, ns + "/partial_results", {ns + "/placedb_voter"}))
       << ReadLog("launch.log");
   ASSERT_TRUE(WaitLinked({ns + "/placedb_voter"}, ns + "/answers", {ns + "/placedb_feed"}))
@@ -469,12 +543,12 @@ void UseTheBuildTree() {
 TEST_F(RosSystemTest, TheLaunchStaysUpAfterTheFeedByDefault) {
   UseTheBuildTree();
   const std::string ns = "/launched_stays";
-  const pid_t launch = Start(
-      {"roslaunch", "placedb", "placedb.launch", "db:=" + Db(), "workers:=2",
-       "deadline_ms:=" + kNoDeadline, "images:=" + kImages,
-       "answers_file:=" + Path("stays_answers.jsonl"), "voter_args:=--sequence",
-       "feed_args:=--rate 0 --first 80 --answer-timeout-ms " + kNoDeadline},
-      "launch_stays.log", ns);
+  const pid_t launch =
+      Start({"roslaunch", "placedb", "placedb.launch", "db:=" + Db(), "workers:=2",
+             "deadline_ms:=" + kNoDeadline, "images:=" + kImages,
+             "answers_file:=" + Path("stays_answers.jsonl"), "voter_args:=--sequence",
+             "feed_args:=--rate 0 --first 80 --answer-timeout-ms " + kNoDeadline},
+            "launch_stays.log", ns);
   const std::vector<std::string> workers = {ns + "/placedb_worker_0", ns + "/placedb_worker_1"};
   ASSERT_TRUE(WaitLinked(workers, ns + "/partial_results", {ns + "/placedb_voter"}))
       << ReadLog("launch_stays.log");
@@ -512,7 +586,8 @@ TEST_F(RosSystemTest, ALaunchWithoutADatabaseEnds) {
             "launch_nodb.log", ns);
   EXPECT_NE(WaitExit(launch, kLimit), -1) << ReadLog("launch_nodb.log");
   const std::string log = ReadLog("launch_nodb.log");
-  EXPECT_NE(log.find("placedb_voter: error: no database at " + Path("no_such_db")), std::string::npos)
+  EXPECT_NE(log.find("placedb_voter: error: no database at " + Path("no_such_db")),
+            std::string::npos)
       << log;
   EXPECT_NE(log.find("REQUIRED process ["), std::string::npos) << log;
   // Run alone, a node says it in one line and exits 1.
@@ -532,7 +607,8 @@ TEST_F(RosSystemTest, ALaunchWithoutADatabaseEnds) {
 // Each node's help names it and ends with examples; a bad flag is one line
 // that names it.
 TEST_F(RosSystemTest, NodeHelpNamesTheNode) {
-  for (const std::string node : {"placedb_feed", "placedb_worker", "placedb_voter", "placedb_extractor"}) {
+  for (const std::string node :
+       {"placedb_feed", "placedb_worker", "placedb_voter", "placedb_extractor"}) {
     const std::string out = Path(node + "_help.log");
     ASSERT_EQ(std::system((kNodes + node + " --help > " + out + " 2>&1").c_str()), 0) << node;
     const std::string help = ReadLog(node + "_help.log");
@@ -542,13 +618,15 @@ TEST_F(RosSystemTest, NodeHelpNamesTheNode) {
     ASSERT_NE(examples, std::string::npos) << help;
     // Only example lines after it, two or three, each a command.
     std::vector<std::string> lines;
-    for (size_t at = examples + 11, end; (end = help.find('\n', at)) != std::string::npos; at = end + 1) {
+    for (size_t at = examples + 11, end; (end = help.find('\n', at)) != std::string::npos;
+         at = end + 1) {
       if (end > at) lines.push_back(help.substr(at, end - at));
     }
     ASSERT_GE(lines.size(), 2u) << help;
     ASSERT_LE(lines.size(), 3u) << help;
     for (const std::string& line : lines) {
-      EXPECT_TRUE(line.rfind("  " + node + " ", 0) == 0 || line.rfind("  roslaunch placedb ", 0) == 0)
+      EXPECT_TRUE(line.rfind("  " + node + " ", 0) == 0 ||
+                  line.rfind("  roslaunch placedb ", 0) == 0)
           << line;
     }
     const int status = std::system((kNodes + node + " --no-such-flag > " + out + " 2>&1").c_str());
@@ -577,10 +655,9 @@ TEST_F(RosSystemTest, ASecondFeedRunIsAnswered) {
   // A deadline in reach: a worker's result for frame 0 of a new run that
   // comes before the run's announcement is refused as late (it cannot be
   // told from the previous run's), and that frame is answered without it.
-  const pid_t voter =
-      Start({"placedb_voter", "--db", Db(), "--partitions", "2", "--deadline-ms", "3000",
-             "--answers-file", answers_file, "--stats-period", "0.5"},
-            "second_voter.log", ns);
+  const pid_t voter = Start({"placedb_voter", "--db", Db(), "--partitions", "2", "--deadline-ms",
+                             "3000", "--answers-file", answers_file, "--stats-period", "0.5"},
+                            "second_voter.log", ns);
   for (int i = 0; i < 2; ++i) {
     Start({"placedb_worker", "--db", Db(), "--partition", std::to_string(i) + "/2"},
           "second_worker" + std::to_string(i) + ".log", ns);
@@ -601,16 +678,29 @@ TEST_F(RosSystemTest, ASecondFeedRunIsAnswered) {
   std::vector<std::string> runs;
   for (int run = 0; run < 3; ++run) {
     const std::string name = "placedb_feed_" + std::to_string(run);
-    std::vector<std::string> args = {"placedb_feed", "--images", kImages, "--first", "41", "--last",
-                                     "56", "--wait-for", "3", "--rate", "0", "--answer-timeout-ms",
-                                     kNoDeadline, "--log-file", Path(name + ".jsonl"),
+    std::vector<std::string> args = {"placedb_feed",
+                                     "--images",
+                                     kImages,
+                                     "--first",
+                                     "41",
+                                     "--last",
+                                     "56",
+                                     "--wait-for",
+                                     "3",
+                                     "--rate",
+                                     "0",
+                                     "--answer-timeout-ms",
+                                     kNoDeadline,
+                                     "--log-file",
+                                     Path(name + ".jsonl"),
                                      "__name:=" + name};
     if (run == 2) {
       args.push_back("--run-id");
       args.push_back(runs[1]);
     }
     const pid_t feed = Start(args, name + ".log", ns);
-    ASSERT_EQ(WaitExit(feed, kRunLimit), 0) << ReadLog(name + ".log") << ReadLog("second_voter.log");
+    ASSERT_EQ(WaitExit(feed, kRunLimit), 0)
+        << ReadLog(name + ".log") << ReadLog("second_voter.log");
     const nlohmann::json report = FeedReport(Path(name + ".jsonl"));
     ASSERT_FALSE(report.is_null()) << ReadLog(name + ".log");
     EXPECT_EQ(report["frames_sent"], 16) << report.dump();
@@ -640,7 +730,8 @@ TEST_F(RosSystemTest, ASecondFeedRunIsAnswered) {
   })) << stats.dump();
   // The periodic report (every 0.5 s, when the counts changed) has them too.
   EXPECT_TRUE(WaitUntil([&] {
-    return ReadLog("second_voter.log").find("]: placedb_voter: 48 frames answered (") != std::string::npos;
+    return ReadLog("second_voter.log").find("]: placedb_voter: 48 frames answered (") !=
+           std::string::npos;
   })) << ReadLog("second_voter.log");
   // Stopped by SIGTERM, the voter reports once more.
   LoopbackRos::Stop(voter);
@@ -672,10 +763,9 @@ TEST_F(RosSystemTest, ABagPlayedTwiceIsAnsweredTwice) {
       bag.write(ns + "/image", h.stamp, BgrToImageMessage(LoadFrameImage(frames[i]), h));
     }
   }
-  const pid_t voter =
-      Start({"placedb_voter", "--db", Db(), "--partitions", "2", "--deadline-ms", "2000",
-             "--answers-file", answers_file},
-            "bagplay_voter.log", ns);
+  const pid_t voter = Start({"placedb_voter", "--db", Db(), "--partitions", "2", "--deadline-ms",
+                             "2000", "--answers-file", answers_file},
+                            "bagplay_voter.log", ns);
   for (int i = 0; i < 2; ++i) {
     Start({"placedb_worker", "--db", Db(), "--partition", std::to_string(i) + "/2"},
           "bagplay_worker" + std::to_string(i) + ".log", ns);
@@ -744,7 +834,8 @@ TEST_F(RosSystemTest, TheFeedReportsFramesNeverAnswered) {
       << ReadLog("report_feed.log");
   size_t partial = 0;
   for (const nlohmann::json& a : WaitLines(Path("report_answers.jsonl"), 8)) {
-    if (a["run"] == report["run"] && !a["complete"].get<bool>() && a["missing"] == nlohmann::json{1})
+    if (a["run"] == report["run"] && !a["complete"].get<bool>() &&
+        a["missing"] == nlohmann::json{1})
       ++partial;
   }
   EXPECT_EQ(partial, 8u);
@@ -756,10 +847,10 @@ TEST_F(RosSystemTest, TheFeedReportsFramesNeverAnswered) {
       quiet + "/frames", 10, [](const std_msgs::HeaderConstPtr&) {}, ros::VoidConstPtr(),
       ros::TransportHints());
   const ros::Subscriber gate = OpenGate(quiet);
-  const pid_t feed = Start({"placedb_feed", "--images", kImages, "--first", "41", "--last", "45",
-                            "--wait-for", "1", "--rate", "0", "--answer-timeout-ms", "100",
-                            "--log-file", Path("quiet_feed.jsonl")},
-                           "quiet_feed.log", quiet);
+  const pid_t feed = Start(
+      {"placedb_feed", "--images", kImages, "--first", "41", "--last", "45", "--wait-for", "1",
+       "--rate", "0", "--answer-timeout-ms", "100", "--log-file", Path("quiet_feed.jsonl")},
+      "quiet_feed.log", quiet);
   ASSERT_EQ(WaitExit(feed, kRunLimit), 0) << ReadLog("quiet_feed.log");
   const nlohmann::json none = FeedReport(Path("quiet_feed.jsonl"));
   ASSERT_FALSE(none.is_null()) << ReadLog("quiet_feed.log");

@@ -4,9 +4,14 @@
 // the library's voting function, so a complete answer equals the single
 // process query's. It opens only the database's keyframe table (ids, poses),
 // never the descriptors, and publishes the answer and its pose.
+// Bag-of-words search over more than one partition takes two rounds
+// (VoteCollector): the workers' shortlists (topic shortlists) are merged
+// into each frame's candidates (topic candidates), which the workers answer.
 #include <geometry_msgs/PoseStamped.h>
 #include <placedb_msgs/Answer.h>
+#include <placedb_msgs/Candidates.h>
 #include <placedb_msgs/PartialResult.h>
+#include <placedb_msgs/Shortlist.h>
 #include <ros/ros.h>
 #include <std_msgs/Header.h>
 #include <std_msgs/String.h>
@@ -49,11 +54,17 @@ class Voter {
         nh_.subscribe("frames", 1000, &Voter::OnFrame, this, ros::TransportHints().tcpNoDelay());
     partial_sub_ = nh_.subscribe("partial_results", 1000, &Voter::OnPartial, this,
                                  ros::TransportHints().tcpNoDelay());
+    if (collector_.two_rounds()) {
+      candidates_ = nh_.advertise<placedb_msgs::Candidates>("candidates", 1000);
+      shortlist_sub_ = nh_.subscribe("shortlists", 1000, &Voter::OnShortlist, this,
+                                     ros::TransportHints().tcpNoDelay());
+    }
     // Deadlines are checked every 2 ms; complete frames are answered as their
     // last partial arrives.
     timer_ = nh_.createSteadyTimer(ros::WallDuration(0.002), &Voter::OnTimer, this);
     // The counts, on voter_stats and in the log, when they changed.
-    stats_timer_ = nh_.createSteadyTimer(ros::WallDuration(stats_period_s), &Voter::OnStatsTimer, this);
+    stats_timer_ =
+        nh_.createSteadyTimer(ros::WallDuration(stats_period_s), &Voter::OnStatsTimer, this);
     PublishStats();
     last_logged_ = Report();
   }
@@ -81,20 +92,49 @@ class Voter {
     Publish();
   }
 
-  void OnPartial(const placedb_msgs::PartialResultConstPtr& m) {
-    if (m->database_id != database_id_) {
-      drops_.Drop("database", "a worker serves " + m->database_id.substr(0, 64) + ", the voter " +
-                                  database_id_);
-      return;
+  // A worker's message serves this voter's database, split as it expects
+  // (else dropped, once per cause in the log).
+  bool SameSplit(const std::string& database_id, const std::string& scheme,
+                 uint32_t num_partitions) {
+    if (database_id != database_id_) {
+      drops_.Drop("database",
+                  "a worker serves " + database_id.substr(0, 64) + ", the voter " + database_id_);
+      return false;
     }
-    if (m->scheme != scheme_ ||
-        static_cast<int>(m->num_partitions) != collector_.options().num_partitions) {
-      drops_.Drop("partition", "a worker splits the database " + std::to_string(m->num_partitions) +
-                                   " ways (" + m->scheme.substr(0, 16) + "), the voter expects " +
+    if (scheme != scheme_ ||
+        static_cast<int>(num_partitions) != collector_.options().num_partitions) {
+      drops_.Drop("partition", "a worker splits the database " + std::to_string(num_partitions) +
+                                   " ways (" + scheme.substr(0, 16) + "), the voter expects " +
                                    std::to_string(collector_.options().num_partitions) + " (" +
                                    scheme_ + ")");
+      return false;
+    }
+    return true;
+  }
+
+  void OnShortlist(const placedb_msgs::ShortlistConstPtr& m) {
+    if (!SameSplit(m->database_id, m->scheme, m->num_partitions)) return;
+    Shortlist shortlist;
+    try {
+      shortlist = ShortlistFromMessage(*m);
+    } catch (const std::exception& e) {
+      drops_.Drop(ros_node::CauseOf(e.what()), e.what());
       return;
     }
+    const VoteStatus status =
+        collector_.OnShortlist(m->frame_seq, static_cast<int>(m->partition), shortlist, NowMs());
+    if (status != VoteStatus::kAccepted) {
+      drops_.Drop(
+          std::string(VoteStatusName(status)) + " shortlist",
+          "partition " + std::to_string(m->partition) + ", frame " + std::to_string(m->frame_seq));
+    } else {
+      headers_.emplace(std::make_pair(collector_.run(), m->frame_seq), m->header);
+    }
+    Publish();
+  }
+
+  void OnPartial(const placedb_msgs::PartialResultConstPtr& m) {
+    if (!SameSplit(m->database_id, m->scheme, m->num_partitions)) return;
     QueryResult partial;
     try {
       partial = PartialFromMessage(*m);
@@ -128,9 +168,9 @@ class Voter {
   // voter_stats (latched std_msgs/String): the counts as JSON.
   void PublishStats() {
     const VoteStats& s = collector_.stats();
-    nlohmann::json j = {{"answered", s.answered}, {"complete", s.complete},
-                        {"partial", s.partial},   {"runs", s.runs},
-                        {"run", collector_.run()}, {"pending", collector_.pending()},
+    nlohmann::json j = {{"answered", s.answered},    {"complete", s.complete},
+                        {"partial", s.partial},      {"runs", s.runs},
+                        {"run", collector_.run()},   {"pending", collector_.pending()},
                         {"dropped", drops_.counts()}};
     std_msgs::String msg;
     msg.data = j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
@@ -138,6 +178,22 @@ class Voter {
   }
 
   void Publish() {
+    // Two rounds: the frames whose shortlists are in (or half their
+    // deadline gone) get their candidates.
+    std::vector<FrameCandidates> merged;
+    try {
+      merged = collector_.PollCandidates(NowMs());
+    } catch (const std::exception& e) {
+      drops_.Drop(ros_node::CauseOf(e.what()), e.what());
+    }
+    for (const FrameCandidates& c : merged) {
+      std_msgs::Header header;
+      const auto h = headers_.find({collector_.run(), c.frame_seq});
+      if (h != headers_.end()) header = h->second;
+      header.seq = static_cast<uint32_t>(c.frame_seq);
+      candidates_.publish(CandidatesToMessage(c, header, collector_.options().num_partitions,
+                                              ParsePartitionScheme(scheme_), database_id_));
+    }
     std::vector<FrameAnswer> ready;
     try {
       ready = collector_.Poll(NowMs());
@@ -173,22 +229,21 @@ class Voter {
         const nlohmann::json result = nlohmann::json::parse(QueryResultToJson(a.result));
         const RankedKeyframe* best = a.result.best();
         const nlohmann::json best_json = best ? result["ranked"][0] : nlohmann::json();
-        nlohmann::json j = {
-            {"frame_seq", a.frame_seq},
-            {"run", a.run},
-            // The frame's source timestamp (its header's stamp), seconds.
-            {"timestamp", header.stamp.toSec()},
-            {"keyframe_id", best ? best->keyframe_id : -1},
-            // The answer's pose (null when no match or the database has none)
-            // and its keyframe's source image.
-            {"pose", best ? best_json["pose"] : nlohmann::json()},
-            {"source", best ? best->source : std::string()},
-            {"wall_ms", ros_node::WallMs()},
-            {"wait_ms", a.waited_ms},
-            {"complete", a.complete()},
-            {"answered", a.answered},
-            {"missing", a.missing},
-            {"result", result}};
+        nlohmann::json j = {{"frame_seq", a.frame_seq},
+                            {"run", a.run},
+                            // The frame's source timestamp (its header's stamp), seconds.
+                            {"timestamp", header.stamp.toSec()},
+                            {"keyframe_id", best ? best->keyframe_id : -1},
+                            // The answer's pose (null when no match or the database has none)
+                            // and its keyframe's source image.
+                            {"pose", best ? best_json["pose"] : nlohmann::json()},
+                            {"source", best ? best->source : std::string()},
+                            {"wall_ms", ros_node::WallMs()},
+                            {"wait_ms", a.waited_ms},
+                            {"complete", a.complete()},
+                            {"answered", a.answered},
+                            {"missing", a.missing},
+                            {"result", result}};
         answers_log_ << j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace) << "\n"
                      << std::flush;
       }
@@ -208,8 +263,8 @@ class Voter {
   std::ofstream answers_log_;
   std::string last_logged_;
   ros::NodeHandle nh_;
-  ros::Publisher answers_, poses_, stats_pub_;
-  ros::Subscriber frames_sub_, partial_sub_;
+  ros::Publisher answers_, poses_, stats_pub_, candidates_;
+  ros::Subscriber frames_sub_, partial_sub_, shortlist_sub_;
   ros::SteadyTimer timer_, stats_timer_;
 };
 

@@ -3,17 +3,31 @@
 // partial result the voter merges. Input: images (raw or compressed) or
 // features extracted once by placedb_extractor. Pinned to one CPU with
 // --cpu, as in the paper.
+//
+// Bag-of-words search over more than one partition takes two rounds, so
+// that the merged answer is the whole database's (a partition's own best
+// candidates are not): the worker opens the whole database (mapped: its
+// memory follows what its partition reads) and sends its shortlist of the
+// frame (topic shortlists); the voter merges them and sends the frame's
+// candidates (topic candidates); the worker answers its share of them on
+// partial_results (BowPartitionWorker, distributed/partition_worker.h).
 #include <image_transport/image_transport.h>
+#include <placedb_msgs/Candidates.h>
 #include <placedb_msgs/Features.h>
 #include <placedb_msgs/PartialResult.h>
+#include <placedb_msgs/Shortlist.h>
 #include <ros/ros.h>
 #include <sensor_msgs/CompressedImage.h>
 
+#include <algorithm>
+#include <map>
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <optional>
 
 #include "placedb/cli/flags.h"
 #include "placedb/dataset/bag/image_message.h"
+#include "placedb/distributed/partition_worker.h"
 #include "placedb/ros/messages.h"
 #include "placedb/ros/node_common.h"
 
@@ -30,6 +44,12 @@ class Worker {
         drops_("placedb_worker"),
         it_(nh_) {
     results_ = nh_.advertise<placedb_msgs::PartialResult>("partial_results", 100);
+    if (TwoRounds(options_, partition_)) {
+      bow_.emplace(db_, partition_, options_, kMaxPending);
+      shortlists_ = nh_.advertise<placedb_msgs::Shortlist>("shortlists", 100);
+      candidates_sub_ = nh_.subscribe("candidates", 100, &Worker::OnCandidates, this,
+                                      ros::TransportHints().tcpNoDelay());
+    }
     // Queue of one: a worker that lags always answers the newest frame; the
     // voter answers the frames it skipped without it.
     if (input == "image") {
@@ -45,8 +65,29 @@ class Worker {
     }
   }
 
+  // Bag of words over more than one partition: two rounds (the session is
+  // then opened on the whole database).
+  static bool TwoRounds(const QueryOptions& options, const KeyframeSubset& partition) {
+    return options.retrieval.method == RetrievalMethod::kBow && partition.num_parts > 1;
+  }
+
  private:
+  // Frames kept between the rounds: more than the voter's default pending
+  // frames could not be answered in time anyway.
+  static constexpr size_t kMaxPending = 64;
+
   void Answer(const FeatureSet& features, const std_msgs::Header& header, double extract_ms) {
+    if (bow_) {
+      try {
+        const Shortlist s = bow_->MakeShortlist(header.seq, features);
+        extract_ms_[header.seq] = extract_ms;
+        while (extract_ms_.size() > kMaxPending) extract_ms_.erase(extract_ms_.begin());
+        shortlists_.publish(ShortlistToMessage(s, header.seq, header, partition_, database_id_));
+      } catch (const std::exception& e) {
+        drops_.Drop(ros_node::CauseOf(e.what()), e.what());
+      }
+      return;
+    }
     try {
       QueryResult r = db_.Query(features, options_.ForPartition());
       r.times.extract_ms = extract_ms;
@@ -115,6 +156,42 @@ class Worker {
     Answer(features, header, 0.0);
   }
 
+  // Round 2: this partition's share of the frame's candidates.
+  void OnCandidates(const placedb_msgs::CandidatesConstPtr& m) {
+    if (m->database_id != database_id_) {
+      drops_.Drop("database", "the voter serves " + m->database_id.substr(0, 64) +
+                                  ", this worker " + database_id_);
+      return;
+    }
+    if (m->scheme != PartitionSchemeName(partition_.scheme) ||
+        static_cast<int>(m->num_partitions) != partition_.num_parts) {
+      drops_.Drop("partition",
+                  "the voter splits the database " + std::to_string(m->num_partitions) + " ways (" +
+                      m->scheme.substr(0, 16) + "), this worker " + partition_.Describe());
+      return;
+    }
+    try {
+      const FrameCandidates c = CandidatesFromMessage(*m);
+      // Not merged: this worker's shortlist came after the voter's half of
+      // the deadline; the frame is answered without it.
+      if (std::find(c.merged.begin(), c.merged.end(), partition_.part) == c.merged.end()) {
+        drops_.Drop("late shortlist",
+                    "frame " + std::to_string(c.frame_seq) + " was merged without it");
+        return;
+      }
+      QueryResult r = bow_->Answer(c.frame_seq, c.candidates);
+      const auto extract = extract_ms_.find(c.frame_seq);
+      if (extract != extract_ms_.end()) {
+        r.times.extract_ms = extract->second;
+        r.times.total_ms += extract->second;
+        extract_ms_.erase(extract);
+      }
+      results_.publish(PartialToMessage(r, c.frame_seq, m->header, partition_, database_id_));
+    } catch (const std::exception& e) {
+      drops_.Drop(ros_node::CauseOf(e.what()), e.what());
+    }
+  }
+
   PlaceDatabase db_;
   QueryOptions options_;
   KeyframeSubset partition_;
@@ -122,9 +199,11 @@ class Worker {
   ros_node::DropLog drops_;
   ros::NodeHandle nh_;
   image_transport::ImageTransport it_;
-  ros::Publisher results_;
+  ros::Publisher results_, shortlists_;
   image_transport::Subscriber image_sub_;
-  ros::Subscriber compressed_sub_, features_sub_;
+  ros::Subscriber compressed_sub_, features_sub_, candidates_sub_;
+  std::optional<BowPartitionWorker> bow_;  // two rounds
+  std::map<uint64_t, double> extract_ms_;  // two rounds: by frame, until its answer
 };
 
 }  // namespace
@@ -135,8 +214,9 @@ int main(int argc, char** argv) {
   CLI::App app{"placedb_worker: matches frames against partition I of N of a placedb database",
                "placedb_worker"};
   placedb::ros_node::AddExamples(
-      app, {"placedb_worker --db out/demo/db_tum_office --partition 0/3 --cpu 0",
-            "placedb_worker --db DB --partition 1/2 --partition-scheme interleaved --input features"});
+      app,
+      {"placedb_worker --db out/demo/db_tum_office --partition 0/3 --cpu 0",
+       "placedb_worker --db DB --partition 1/2 --partition-scheme interleaved --input features"});
   cli::DatabaseArgs db;
   cli::QueryArgs query;
   std::string input = "image";
@@ -154,9 +234,9 @@ int main(int argc, char** argv) {
   // Named after its partition (parsed by then): placedb_worker_2.
   auto name = [&]() -> std::string {
     const placedb::KeyframeSubset& s = db.open.subset;
-    return "placedb_worker_" +
-           (s.kind == placedb::KeyframeSubset::Kind::kPartition ? std::to_string(s.part)
-                                                                : std::string("x"));
+    return "placedb_worker_" + (s.kind == placedb::KeyframeSubset::Kind::kPartition
+                                    ? std::to_string(s.part)
+                                    : std::string("x"));
   };
   if (!placedb::ros_node::Init(&argc, argv, name, app, &code)) return code;
   return placedb::ros_node::RunNode("placedb_worker", [&] {
@@ -168,12 +248,17 @@ int main(int argc, char** argv) {
     // A worker is one CPU's worth of work (the paper's node per processor):
     // OpenCV's own threads would only compete with the other workers.
     cv::setNumThreads(1);
+    const placedb::KeyframeSubset partition = db.open.subset;
+    const placedb::QueryOptions options = query.Get();
+    const bool two_rounds = placedb::Worker::TwoRounds(options, partition);
+    // Two rounds shortlist the partition within the whole database.
+    if (two_rounds) db.open.subset = placedb::KeyframeSubset::All();
     placedb::PlaceDatabase opened = db.Open();
-    const placedb::KeyframeSubset partition = opened.subset();
-    ROS_INFO("placedb_worker: %s of %s, %zu keyframes, %zu features, input %s",
-             partition.Describe().c_str(), db.dir.c_str(), opened.size(),
-             opened.num_features(), input.c_str());
-    placedb::Worker worker(std::move(opened), query.Get(), partition, input);
+    ROS_INFO("placedb_worker: %s of %s, %zu keyframes, %zu features, input %s%s",
+             partition.Describe().c_str(), db.dir.c_str(), opened.size(), opened.num_features(),
+             input.c_str(),
+             two_rounds ? ", bag of words in two rounds (the whole database opened)" : "");
+    placedb::Worker worker(std::move(opened), options, partition, input);
     ros::spin();
     return 0;
   });
