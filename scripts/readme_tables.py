@@ -104,8 +104,22 @@ def ros_table(r):
                     f"{l['p99']:.1f} | {w['fps']:.1f} | {w['fps_vs_one_worker']:.2f}× | "
                     f"{a['p50']:.2f} / {a['p99']:.2f} |")
     answered = ", ".join(f"{w['answered']}/{w['published']}" for w in r["ros"])
+    counts = ", ".join(str(w["workers"]) for w in r["ros"])
     note = (f"{r['keyframes']} keyframes ({r['features']} ORB features), {r['frames']} frames, {r['cpus']} CPUs; "
-            f"frames answered (1, 2, 4 workers): {answered}.")
+            f"frames answered ({counts} workers): {answered}.")
+    if r.get("bow"):
+        s = r["bow_single_ms"]
+        rows.append(f"| bag of words, single process, 1 thread | {s['p50']:.1f} | {s['p99']:.1f} | "
+                    f"{1000 / s['mean']:.1f} | | |")
+        for w in r["bow"]:
+            l, a = w["latency_ms"], w["added_ms"]
+            rows.append(f"| bag of words on ROS, {w['workers']} workers (two rounds) | {l['p50']:.1f} | "
+                        f"{l['p99']:.1f} | {w['fps']:.1f} | | {a['p50']:.2f} / {a['p99']:.2f} |")
+        same = ", ".join(f"{w['same_as_single_process']}/{w['published']}" for w in r["bow"])
+        counts = ", ".join(str(w["workers"]) for w in r["bow"])
+        note += (f" Bag of words (the same keyframes with a bag-of-words index, default options): answers equal "
+                 f"to the single process's ({counts} workers): {same}; complete: "
+                 + ", ".join(f"{w['complete']}/{w['published']}" for w in r["bow"]) + ".")
     return "\n".join(rows) + "\n\n" + note
 
 

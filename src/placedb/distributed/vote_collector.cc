@@ -169,11 +169,15 @@ FrameAnswer VoteCollector::Answer(uint64_t seq, Pending&& p, double now_ms) {
     if (!p.partials.count(i)) a.missing.push_back(i);
   }
   a.result = MergeQueryResults(parts, options_.query);
-  // Two rounds: the bag-of-words scoring was the shortlists'.
+  // Two rounds: the bag-of-words scoring was the shortlists', a round of its
+  // own before the answers: the slowest shortlist's time adds to the total.
+  double shortlist_ms = 0.0;
   for (const auto& [partition, list] : p.shortlists) {
     a.result.deadline_reached = a.result.deadline_reached || list.deadline_reached;
-    a.result.times.retrieve_ms = std::max(a.result.times.retrieve_ms, list.retrieve_ms);
+    shortlist_ms = std::max(shortlist_ms, list.retrieve_ms);
   }
+  a.result.times.retrieve_ms = std::max(a.result.times.retrieve_ms, shortlist_ms);
+  a.result.times.total_ms += shortlist_ms;
   a.waited_ms = std::max(0.0, now_ms - p.first_seen_ms);
   ++stats_.answered;
   ++(a.complete() ? stats_.complete : stats_.partial);

@@ -15,6 +15,8 @@
 // an empty result when it holds none). A partition whose shortlist missed
 // the merge cannot answer the frame (its keyframes were not considered):
 // its answer is refused and the frame is answered without it, as missing.
+// The answer's retrieve time is the slowest shortlist's, and its total the
+// slowest answer's plus that (the rounds follow each other).
 // BowPartitionWorker (partition_worker.h) is a partition's side.
 // Not thread-safe: one caller (the voter's event loop).
 #pragma once

@@ -519,6 +519,7 @@ TEST(VoteCollectorTest, ShortlistsThatCannotBeMergedAreRefused) {
   EXPECT_TRUE(ready[0].complete());
   EXPECT_TRUE(ready[0].result.deadline_reached);
   EXPECT_DOUBLE_EQ(ready[0].result.times.retrieve_ms, 7.5);
+  EXPECT_DOUBLE_EQ(ready[0].result.times.total_ms, 7.5);  // + the answers' (0 here)
 }
 
 }  // namespace
