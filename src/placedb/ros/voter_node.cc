@@ -145,8 +145,13 @@ class Voter {
     const VoteStatus status =
         collector_.OnPartial(m->frame_seq, static_cast<int>(m->partition), partial, NowMs());
     if (status != VoteStatus::kAccepted) {
-      drops_.Drop(VoteStatusName(status), "partition " + std::to_string(m->partition) + ", frame " +
-                                              std::to_string(m->frame_seq));
+      std::string what =
+          "partition " + std::to_string(m->partition) + ", frame " + std::to_string(m->frame_seq);
+      // Bag of words takes two rounds: an answer before the frame's
+      // candidates comes from a worker that answers in one.
+      if (status == VoteStatus::kUnexpected)
+        what += " (not asked for: the workers need the voter's search options)";
+      drops_.Drop(VoteStatusName(status), what);
     } else {
       headers_.emplace(std::make_pair(collector_.run(), m->frame_seq), m->header);
     }
