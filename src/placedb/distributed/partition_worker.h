@@ -8,8 +8,9 @@
 //            options.ForPartition()), an empty one when it holds none of
 //            them; the frame's features are forgotten.
 // The session must be opened on the whole database (BowShortlist needs it;
-// mapped, its memory follows what the partition reads). Not thread-safe:
-// one caller (the worker's event loop).
+// mapped, its memory follows what the partition reads) and outlive the
+// worker, which refers to it. Not thread-safe: one caller (the worker's
+// event loop).
 #pragma once
 
 #include <cstddef>
