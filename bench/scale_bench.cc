@@ -854,12 +854,21 @@ int main(int argc, char** argv) {
         // In a process of its own (forked: it starts with none of this
         // process's mapped pages resident), as a robot's would be: the
         // sessions' resident limit is the process's.
-        std::vector<int> limits = {0};
-        if (resident_limit_mb > 0) limits.push_back(resident_limit_mb);
-        for (const int limit : limits)
+        // Without a limit, with the limit, and with the features read rather
+        // than mapped (OpenOptions::read_features, no limit).
+        struct MemoryConfig {
+          int limit;
+          bool read;
+        };
+        std::vector<MemoryConfig> configs = {{0, false}};
+        if (resident_limit_mb > 0) configs.push_back({resident_limit_mb, false});
+        configs.push_back({0, true});
+        for (const MemoryConfig& mc : configs)
           memory_runs.push_back(InChildProcess([&] {
+            const int limit = mc.limit;
             placedb::OpenOptions limited = open_options;
             limited.resident_limit_mb = limit;
+            limited.read_features = mc.read;
             const Resident before_session = ResidentNow();
             const placedb::PlaceDatabase session =
                 placedb::PlaceDatabase::Open(dir.string(), limited);
@@ -904,16 +913,18 @@ int main(int argc, char** argv) {
             }
             const LatencyStats s = placedb::ComputeLatencyStats(ms);
             fmt::print(
-                "  a new process and session (resident limit {} MiB), {} bow queries: resident "
-                "+{:.0f} MiB private, +{:.0f} "
+                "  a new process and session (resident limit {} MiB{}), {} bow queries: "
+                "resident +{:.0f} MiB private, +{:.0f} "
                 "MiB file-backed over the process before its open (the process: {:.0f} + {:.0f} "
                 "MiB); p50 {:.2f} ms p99 {:.2f} ms recall@1 {:.3f}; {}\n",
-                limit, memory_queries, after.anon - before_session.anon,
-                after.file - before_session.file, after.anon, after.file, s.p50, s.p99,
-                static_cast<double>(correct) / memory_queries, faults.Text());
+                limit, mc.read ? ", features read" : "", memory_queries,
+                after.anon - before_session.anon, after.file - before_session.file, after.anon,
+                after.file, s.p50, s.p99, static_cast<double>(correct) / memory_queries,
+                faults.Text());
             return nlohmann::json{
                 {"queries", memory_queries},
                 {"resident_limit_mb", limit},
+                {"read_features", mc.read},
                 {"resident_increase", ResidentJson({after.anon - before_session.anon,
                                                     after.file - before_session.file})},
                 {"latency_ms", StatsJson(s)},

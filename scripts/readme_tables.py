@@ -217,8 +217,13 @@ def scale_table(j):
     for keyframes, m in memory_runs:
         r = m["resident_increase"]
         limit = m.get("resident_limit_mb", 0)
-        limit_text = (f"with `resident_limit_mb` {limit}" if limit > 0
-                      else "without a resident limit, the default")
+        if m.get("read_features"):
+            limit_text = ("with `read_features`: the examined keyframes' features read from the file, "
+                          "not mapped; no resident limit")
+        elif limit > 0:
+            limit_text = f"with `resident_limit_mb` {limit}"
+        else:
+            limit_text = "without a resident limit, the default"
         by_file = m.get("resident_by_file_mib", {})
         files = ", ".join(f"{name.split('.')[0]} {mib:.0f}" for name, mib in sorted(by_file.items()))
         rows += ["", f"At {keyframes} keyframes, a process of its own opened a session ({limit_text}) and asked "

@@ -212,10 +212,11 @@ Examination ExamineAll(const Database& db, const GroupedFeatures& grouped,
   auto match_chunk = [&](size_t c) {
     std::vector<Examined>& kept = partial[c];
     std::vector<cv::DMatch> matches;
+    std::vector<uint8_t> rows;  // a candidate's rows, when the database reads them
     for (size_t i = n * c / chunks; i < n * (c + 1) / chunks; ++i) {
       const uint32_t index = candidates[i].index;
       matches.clear();
-      const int good = MatchDescriptors(grouped.block, db.Descriptors(index), options.match,
+      const int good = MatchDescriptors(grouped.block, db.Descriptors(index, &rows), options.match,
                                         need_matches ? &matches : nullptr);
       if (!Ranked(good, whole.Of(index), options)) continue;
       kept.push_back(MakeExamined(
@@ -312,6 +313,7 @@ Examination ExamineTimed(const Database& db, const GroupedFeatures& grouped,
   };
   auto worker = [&](size_t) {
     std::vector<cv::DMatch> matches;
+    std::vector<uint8_t> rows;  // a candidate's rows, when the database reads them
     for (;;) {
       const size_t i = next.fetch_add(1);
       if (i >= n) break;
@@ -322,7 +324,7 @@ Examination ExamineTimed(const Database& db, const GroupedFeatures& grouped,
       Timer t;
       const uint32_t index = candidates[i].index;
       matches.clear();
-      const int good = MatchDescriptors(grouped.block, db.Descriptors(index), options.match,
+      const int good = MatchDescriptors(grouped.block, db.Descriptors(index, &rows), options.match,
                                         verify ? &matches : nullptr);
       examined.fetch_add(1, std::memory_order_relaxed);
       const double matched_ms = t.ElapsedMs();
@@ -678,7 +680,8 @@ MatchDetail MatchKeyframe(const Database& db, const FeatureSet& query, size_t in
   const GroupedFeatures grouped = GroupByLaplacian(query);
   MatchDetail d;
   d.keyframe_id = db.keyframe(index).id;
-  MatchDescriptors(grouped.block, db.Descriptors(index), options.match, &d.matches);
+  std::vector<uint8_t> rows;
+  MatchDescriptors(grouped.block, db.Descriptors(index, &rows), options.match, &d.matches);
   d.query_keypoints = grouped.set.keypoints;
   const Keyframe& k = db.keyframe(index);
   const std::vector<cv::KeyPoint> keypoints = db.Keypoints(index);

@@ -107,13 +107,14 @@ std::vector<BowCandidate> ScoreBowCandidates(
   // Counted while the mean count so far still fits before the deadline (the
   // first always).
   Timer counting;
+  std::vector<uint8_t> rows;  // a candidate's rows, when the database reads them
   for (size_t i = 0; i < out.size(); ++i) {
     if (i > 0 && !deadline.Fits(counting.ElapsedMs() / static_cast<double>(i))) {
       if (stopped != nullptr) *stopped = true;
       break;
     }
     const std::vector<uint32_t> kf = index.DirectNodes(out[i].index);
-    out[i].guided = guided_matcher.Count(db.Descriptors(out[i].index), kf.data(), kf.size());
+    out[i].guided = guided_matcher.Count(db.Descriptors(out[i].index, &rows), kf.data(), kf.size());
   }
   return out;
 }

@@ -173,6 +173,10 @@ const OptionTable<OpenOptions>& OpenOptions::Table() {
            "read the database files into the page cache in the background after the open, then "
            "check the index and the keyframes' features",
            BoolFlag::kNegatable, kCallers);
+    t.Bool("read_features", PLACEDB_MEMBER(O, read_features),
+           "queries read the examined keyframes' features from the file instead of mapping "
+           "them: resident memory stays near the index's, at a read per keyframe",
+           BoolFlag::kSwitch, kCallers);
     t.Number("resident_limit_mb", PLACEDB_MEMBER(O, resident_limit_mb),
              OptionRange::Closed(0, 1048576),
              "above this file-backed resident memory (MiB) after a query, let go of the "

@@ -440,6 +440,7 @@ PlaceDatabase PlaceDatabase::Open(const std::string& dir, const OpenOptions& opt
   LoadOptions load;
   load.subset = options.subset;
   load.contents = options.keyframe_table ? LoadContents::kKeyframeTable : LoadContents::kAll;
+  load.read_features = options.read_features;
   impl->db = Database::Load(dir, load);
   const Database& db = impl->db;
   impl->keyframe_table = options.keyframe_table;

@@ -96,6 +96,18 @@ struct OpenOptions {
   // 0 (default): no limit, every page read stays mapped until the session
   // closes (clean pages the kernel may still reclaim under pressure).
   int resident_limit_mb = 0;
+  // Queries read the features of the keyframes they examine from the
+  // keyframe file (pread, into a buffer of the query's) instead of through
+  // its mapping (LoadOptions::read_features): the file's pages stay in the
+  // kernel's page cache and do not count in this process's resident
+  // memory, which then stays near what the open and the index take however
+  // many keyframes the queries examine (README, "Retrieval at scale",
+  // measures it), at the cost of one read per examined keyframe (about
+  // 5 us here; exhaustive search reads every keyframe). Answers are the
+  // same, and every byte is still checked before it is used (the bytes read
+  // are checked when the keyframe's first use is a read). Only for a
+  // version 3 database opened with its features. Default false.
+  bool read_features = false;
 
   // The options' names, defaults, ranges and help (util/option_table.h).
   static const OptionTable<OpenOptions>& Table();

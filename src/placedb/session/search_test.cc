@@ -231,6 +231,67 @@ TEST_F(SearchTest, ResidentLimitLetsGoOfTheKeyframeFile) {
   }
 }
 
+// read_features: queries read the features of the keyframes they examine
+// from the file instead of mapping them, so the keyframe file's pages never
+// count in the process's resident memory; the answers are the same, with
+// and without verification, and so is a keyframe's match detail.
+TEST_F(SearchTest, ReadFeaturesAnswerTheSameWithoutMappingTheKeyframes) {
+  QueryOptions bow;
+  bow.retrieval.method = RetrievalMethod::kBow;
+  QueryOptions unverified = bow;
+  unverified.verify.enabled = false;
+  const QueryOptions exhaustive;
+  const std::vector<const QueryOptions*> searches = {&bow, &unverified, &exhaustive};
+  OpenOptions plain;
+  plain.prefetch = false;  // only queries map pages
+  OpenOptions reading = plain;
+  reading.read_features = true;
+  std::vector<QueryResult> expected;
+  std::vector<MatchDetail> details;
+  double mapped_growth_kb = 0.0;
+  {
+    const PlaceDatabase db = PlaceDatabase::Open(Dir(), plain);
+    EXPECT_FALSE(StorageView(db).database().reads_features());
+    // A small file is all resident after the open: start with none of it.
+    StorageView(db).database().mapped_file()->ReleaseResidentPages();
+    const double opened_kb = MappedRssKb(Dir(), "keyframes.");
+    for (int id = 41; id <= 46; ++id)
+      for (const QueryOptions* options : searches)
+        expected.push_back(db.Query(Features(id), *options));
+    mapped_growth_kb = MappedRssKb(Dir(), "keyframes.") - opened_kb;
+    details.push_back(db.Explain(Features(41), expected[0].ranked[0].keyframe_id, bow));
+  }
+  const PlaceDatabase db = PlaceDatabase::Open(Dir(), reading);
+  EXPECT_TRUE(StorageView(db).database().reads_features());
+  StorageView(db).database().mapped_file()->ReleaseResidentPages();
+  const double opened_kb = MappedRssKb(Dir(), "keyframes.");
+  size_t at = 0;
+  int answered = 0;
+  for (int id = 41; id <= 46; ++id) {
+    for (const QueryOptions* options : searches) {
+      const QueryResult r = db.Query(Features(id), *options);
+      const QueryResult& e = expected[at++];
+      answered += e.ranked.empty() ? 0 : 1;
+      ASSERT_EQ(r.ranked.size(), e.ranked.size()) << id;
+      for (size_t k = 0; k < r.ranked.size(); ++k) {
+        EXPECT_EQ(r.ranked[k].keyframe_id, e.ranked[k].keyframe_id) << id;
+        EXPECT_EQ(r.ranked[k].score, e.ranked[k].score) << id;
+        EXPECT_EQ(r.ranked[k].num_inliers, e.ranked[k].num_inliers) << id;
+      }
+    }
+  }
+  EXPECT_GE(answered, 12);
+  const MatchDetail d = db.Explain(Features(41), expected[0].ranked[0].keyframe_id, bow);
+  EXPECT_EQ(d.matches.size(), details[0].matches.size());
+  EXPECT_EQ(d.num_inliers, details[0].num_inliers);
+  EXPECT_EQ(d.keyframe_stored_points, details[0].keyframe_stored_points);
+  const double read_growth_kb = MappedRssKb(Dir(), "keyframes.") - opened_kb;
+  std::cerr << "keyframe file resident growth: mapped " << mapped_growth_kb << " kB, read "
+            << read_growth_kb << " kB\n";
+  EXPECT_GT(mapped_growth_kb, 0.0);
+  EXPECT_EQ(read_growth_kb, 0.0);
+}
+
 // The background work of a session with prefetch and a resident limit:
 // WaitForBackgroundWork returns once the prefetch pass is done and the
 // releases asked for are served (after which the keyframe file is let go

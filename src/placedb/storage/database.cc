@@ -201,15 +201,23 @@ int Database::IndexOfId(int32_t id) const {
 
 std::vector<cv::KeyPoint> Database::Keypoints(size_t index) const {
   if (!has_features_) PLACEDB_THROW_INVALID(kNoFeatures);
-  EnsureChecked(index);
   const size_t count = feature_count_[index];
   if (mapping_ && mapped_compact_keypoints_ != nullptr) {
+    thread_local std::vector<uint8_t> buffer;
+    const char* records;
+    if (reads_features()) {
+      const size_t at = ReadFeatures(index, true, &buffer);  // resizes the buffer: first
+      records = reinterpret_cast<const char*>(buffer.data()) + at;
+    } else {
+      EnsureChecked(index);
+      records = mapped_compact_keypoints_ + row_offset_[index] * ckp::kRecordBytes;
+    }
     std::vector<cv::KeyPoint> out(count);
-    const char* records = mapped_compact_keypoints_ + row_offset_[index] * ckp::kRecordBytes;
     const int bits = ckp::FractionBits(keyframes_[index].stored_size);  // checked on open
     for (size_t f = 0; f < count; ++f) ckp::Decode(records + f * ckp::kRecordBytes, bits, &out[f]);
     return out;
   }
+  EnsureChecked(index);
   const cv::KeyPoint* first = KeypointData() + row_offset_[index];
   return std::vector<cv::KeyPoint>(first, first + count);
 }
@@ -226,6 +234,32 @@ void Database::CheckFeatures(size_t index) const {
                      mapped_descriptors_ + first * static_cast<uint64_t>(descriptor_bytes_));
   if (!bad.empty()) PLACEDB_THROW_CORRUPT(lazy.shown, ": keyframe ", keyframes_[index].id, bad);
   lazy.checked[index].store(1, std::memory_order_release);
+}
+
+size_t Database::ReadFeatures(size_t index, bool records, std::vector<uint8_t>* buffer) const {
+  const bool check = !FeaturesChecked(index);
+  const uint64_t count = feature_count_[index];
+  const uint64_t row_bytes = count * static_cast<uint64_t>(descriptor_bytes_);
+  const uint64_t record_bytes = records || check ? count * ckp::kRecordBytes : 0;
+  // Descriptor rows first: SURF's floats stay aligned.
+  buffer->resize(row_bytes + record_bytes);
+  const char* base = mapping_->data();
+  mapping_->ReadAt(static_cast<size_t>(reinterpret_cast<const char*>(mapped_descriptors_) - base) +
+                       row_offset_[index] * static_cast<uint64_t>(descriptor_bytes_),
+                   row_bytes, buffer->data());
+  if (record_bytes > 0) {
+    mapping_->ReadAt(static_cast<size_t>(mapped_compact_keypoints_ - base) +
+                         row_offset_[index] * ckp::kRecordBytes,
+                     record_bytes, buffer->data() + row_bytes);
+  }
+  if (check) {
+    // The very bytes this use reads are the ones checked.
+    const std::string bad = FeatureProblem(
+        index, reinterpret_cast<const char*>(buffer->data()) + row_bytes, buffer->data());
+    if (!bad.empty()) PLACEDB_THROW_CORRUPT(lazy_->shown, ": keyframe ", keyframes_[index].id, bad);
+    lazy_->checked[index].store(1, std::memory_order_release);
+  }
+  return row_bytes;
 }
 
 std::string Database::FeatureProblem(size_t index, const char* records, const uint8_t* rows) const {
@@ -316,6 +350,20 @@ void Database::VerifyAll() const {
   // (a subset's rows were checked when they were copied, on open).
   EnsureWholeImageChecked();
   for (size_t i = 0; i < keyframes_.size(); ++i) EnsureChecked(i);
+}
+
+DescriptorBlock Database::Descriptors(size_t index, std::vector<uint8_t>* buffer) const {
+  if (!reads_features()) return Descriptors(index);
+  if (!has_features_) PLACEDB_THROW_INVALID(kNoFeatures);
+  ReadFeatures(index, false, buffer);
+  DescriptorBlock block;
+  block.type = feature_type_;
+  block.rows = static_cast<int>(feature_count_[index]);
+  block.row_bytes = descriptor_bytes_;
+  block.data = buffer->data();
+  if (feature_type_ == FeatureType::kSurf)
+    block.positive_rows = static_cast<int>(positive_count_[index]);
+  return block;
 }
 
 DescriptorBlock Database::Descriptors(size_t index) const {
@@ -1278,6 +1326,7 @@ Database Database::Load(const std::string& dir, const LoadOptions& options) {
     if (static_cast<uint64_t>(features) != Field<uint64_t>(file->data(), 40))
       disagree("the number of features");
     db.info_ = std::move(manifest);
+    db.read_features_ = options.read_features;
     db.keyframes_file_ = name;
     db.keyframes_bytes_ = expected_bytes;
     return db;

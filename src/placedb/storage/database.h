@@ -87,6 +87,15 @@ enum class LoadContents {
 struct LoadOptions {
   KeyframeSubset subset;
   LoadContents contents = LoadContents::kAll;
+  // A version 3 file's features are read from the file (pread) for each
+  // use by a query (Database::Descriptors with a buffer, Keypoints) instead
+  // of through the mapping: the process's resident memory does not grow by
+  // the keyframes its queries examine (they stay in the kernel's page
+  // cache), at the cost of a read per candidate. Other uses (a build, an
+  // index build, the exhaustive baseline) and version 2 files use the
+  // mapping as before; a database that is changed (AddKeyframe) keeps its
+  // features in memory.
+  bool read_features = false;
 };
 
 class Database {
@@ -132,6 +141,16 @@ class Database {
   // is checked whole on open, as before. Thread-safe.
   std::vector<cv::KeyPoint> Keypoints(size_t index) const;
   DescriptorBlock Descriptors(size_t index) const;
+  // The same rows for a query's own, short use: with
+  // LoadOptions::read_features (and the features used in place from a
+  // version 3 file) they are read from the file into *buffer, and checked
+  // as read if their first use is now, and the view is valid until *buffer
+  // changes; otherwise this is Descriptors(index) and *buffer is unused.
+  DescriptorBlock Descriptors(size_t index, std::vector<uint8_t>* buffer) const;
+  // Whether Descriptors(index, buffer) and Keypoints read from the file.
+  bool reads_features() const {
+    return read_features_ && mapping_ && mapped_compact_keypoints_ != nullptr;
+  }
   // Checks now every byte of the database that is not yet checked (what
   // `placedb verify` runs): the keypoint, descriptor and whole-image
   // sections' checksums and every keyframe's features. CorruptDatabase on
@@ -257,6 +276,11 @@ class Database {
     if (lazy_ != nullptr && !FeaturesChecked(index)) CheckFeatures(index);
   }
   void CheckFeatures(size_t index) const;
+  // Reads keyframe `index`'s descriptor rows, then (with `records`, or when
+  // they are to be checked now) its keypoint records from the file into
+  // *buffer, checks them if they are not checked yet (CorruptDatabase), and
+  // returns where the records start in *buffer (rows.size() when not read).
+  size_t ReadFeatures(size_t index, bool records, std::vector<uint8_t>* buffer) const;
   // Why keyframe `index`'s features, given their compact keypoint records
   // and descriptor rows, are impossible (to follow "keyframe ID"), or "".
   std::string FeatureProblem(size_t index, const char* records, const uint8_t* rows) const;
@@ -297,6 +321,7 @@ class Database {
   std::shared_ptr<LazyCheck> lazy_;
   uint32_t file_format_version_ = 0;
   const uint8_t* mapped_descriptors_ = nullptr;
+  bool read_features_ = false;  // LoadOptions::read_features
   // The whole file's rows in place (a subset's are copied into whole_image_).
   const int8_t* mapped_whole_image_ = nullptr;
   bool has_features_ = true;

@@ -160,6 +160,30 @@ void RoundTrip(const ExtractorOptions& options, bool with_poses) {
   const Database loaded = LoadVerified(tmp.Path());
   ExpectDatabasesEqual(db, loaded);
   ExpectInfoPreserved(db.info(), loaded.info());
+  // Features read from the file (LoadOptions::read_features), not mapped:
+  // the same keypoints and rows, in the caller's buffer, checked as read.
+  LoadOptions read;
+  read.read_features = true;
+  const Database reader = Database::Load(tmp.Path(), read);
+  EXPECT_TRUE(reader.reads_features());
+  EXPECT_FALSE(loaded.reads_features());
+  std::vector<uint8_t> buffer;
+  for (size_t i = 0; i < db.size(); ++i) {
+    EXPECT_FALSE(reader.FeaturesChecked(i));
+    const DescriptorBlock r = reader.Descriptors(i, &buffer), e = db.Descriptors(i);
+    EXPECT_TRUE(reader.FeaturesChecked(i));
+    EXPECT_EQ(r.data, buffer.data());
+    EXPECT_EQ(r.type, e.type);
+    ASSERT_EQ(r.rows, e.rows);
+    ASSERT_EQ(r.row_bytes, e.row_bytes);
+    EXPECT_EQ(r.positive_rows, e.positive_rows);
+    EXPECT_EQ(0, std::memcmp(r.data, e.data, static_cast<size_t>(r.rows) * r.row_bytes));
+    testing_util::ExpectSameKeypoints(reader.Keypoints(i), db.Keypoints(i));
+  }
+  // Without the option, the buffer is not used: the rows are the mapping's.
+  std::vector<uint8_t> unused;
+  EXPECT_EQ(loaded.Descriptors(0, &unused).data, loaded.Descriptors(0).data);
+  EXPECT_TRUE(unused.empty());
   EXPECT_EQ(loaded.info()["format"], "placedb-database");
   EXPECT_EQ(loaded.info()["format_version"], kDatabaseFormatVersion);
   EXPECT_EQ(loaded.info()["feature_type"], FeatureTypeName(options.type));
@@ -666,6 +690,19 @@ TEST_F(DatabaseFileTest, FeaturesAreCheckedOnFirstUse) {
     EXPECT_FALSE(db.FeaturesChecked(1));
     EXPECT_NO_THROW(db.Descriptors(2));
     EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { db.VerifyAll(); }, "section checksum mismatch"));
+    // Read rather than mapped (LoadOptions::read_features): the bytes read
+    // are checked, whichever of the keyframe's blocks the use asks for.
+    LoadOptions read;
+    read.read_features = true;
+    const Database reader = Database::Load(Dir(), read);
+    std::vector<uint8_t> buffer;
+    EXPECT_NO_THROW(reader.Descriptors(0, &buffer));
+    EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { reader.Descriptors(1, &buffer); }, c.what))
+        << c.what;
+    EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { reader.Keypoints(1); }, c.what)) << c.what;
+    EXPECT_FALSE(reader.FeaturesChecked(1));
+    EXPECT_EQ(reader.Keypoints(2).size(), db_->FeatureCount(2));
+    EXPECT_TRUE(reader.FeaturesChecked(2));
     // Copying the database (the first added keyframe) reads every keyframe.
     Database grown = db;
     EXPECT_THROW(grown.Reserve(4, 1000), CorruptDatabase);
