@@ -84,7 +84,7 @@ std::string HelpOf(const OptionField& f) {
       f.range != "any") {
     help += f.kind == OptionKind::kChoice || f.kind == OptionKind::kList ? ": " + f.range
             : f.range.find_first_of("[(") == 0                           ? " " + f.range
-                                                                          : " (" + f.range + ")";
+                                                                         : " (" + f.range + ")";
   }
   return FormatOptionNames(help, FlagOf);
 }
@@ -112,10 +112,9 @@ void AddOptionFlags(CLI::App* cmd, const OptionTableBase& table, void* options,
     const std::string help = HelpOf(f);
     const OptionTableBase::Entry* e = &entry;  // tables live as long as the program
     if (f.kind == OptionKind::kBool && f.bool_flag != BoolFlag::kValue) {
-      CLI::Option* flag = nullptr;
       switch (f.bool_flag) {
         case BoolFlag::kSwitch:
-          flag = cmd->add_flag_function(
+          cmd->add_flag_function(
               f.flag, [e, options](int64_t) { e->set(options, true); }, help);
           break;
         case BoolFlag::kNegatable: {
@@ -123,14 +122,14 @@ void AddOptionFlags(CLI::App* cmd, const OptionTableBase& table, void* options,
           // said in words: "--verify,--no-verify=true" reads ambiguously.
           const bool on = OptionTableBase::Text(entry.get(options)) == "true";
           const std::string positive = f.flag.substr(0, f.flag.find(','));
-          flag = cmd->add_flag_function(
+          cmd->add_flag_function(
               f.flag, [e, options](int64_t count) { e->set(options, count > 0); },
               help + (on ? " (default: on; --no-" + positive.substr(2) + " turns it off)"
                          : " (default: off; " + positive + " turns it on)"));
           break;
         }
         case BoolFlag::kInverted:
-          flag = cmd->add_flag_function(
+          cmd->add_flag_function(
               f.flag, [e, options](int64_t) { e->set(options, false); }, help);
           break;
         case BoolFlag::kValue:
@@ -140,9 +139,8 @@ void AddOptionFlags(CLI::App* cmd, const OptionTableBase& table, void* options,
     }
     const std::string name = f.name;
     CLI::Option* option = cmd->add_option_function<std::string>(
-        f.flag, [&table, options, name](const std::string& text) {
-          table.SetText(options, name, text);
-        },
+        f.flag,
+        [&table, options, name](const std::string& text) { table.SetText(options, name, text); },
         help);
     option->type_name(TypeName(f.kind));
     const std::string current = OptionTableBase::Text(entry.get(options));

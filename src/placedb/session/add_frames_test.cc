@@ -40,7 +40,7 @@ class AddFramesTest : public ::testing::Test {
     const fs::path dir = tmp_.Path(name);
     fs::create_directories(dir);
     for (size_t i = 0; i < numbers.size(); ++i) {
-      char file[16];
+      char file[32];
       std::snprintf(file, sizeof(file), "%03zu.jpg", i + 1);
       fs::copy_file(RtabmapImage(numbers[i]), dir / file, fs::copy_options::overwrite_existing);
     }
@@ -140,8 +140,7 @@ TEST_F(AddFramesTest, ExistingFramesAreKnownBySourceAndContent) {
   EXPECT_EQ(r.skipped, 3u);
   EXPECT_EQ(r.ids, (std::vector<int32_t>{4, 5, 6}));
   // Without skip_existing: an error naming the keyframe, nothing added.
-  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.AddFrames(all); },
-                                          "is already keyframe 11 of"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.AddFrames(all); }, "is already keyframe 11 of"));
   EXPECT_EQ(db.size(), 14u);
 
   // 003.jpg now holds another image: same path, new content, added.
@@ -206,8 +205,8 @@ TEST_F(AddFramesTest, DatabasesWithoutHashesFallBackToThePath) {
   EXPECT_EQ(r.skipped, 2u);
   EXPECT_EQ(r.skipped_by_path, 2u);
   EXPECT_EQ(r.ids, (std::vector<int32_t>{9, 10, 11, 12}));
-  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
-      [&] { db.AddFrames(ListImageFolder(kImages, 1, 1)); }, "that keyframe has no content hash"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.AddFrames(ListImageFolder(kImages, 1, 1)); },
+                                          "that keyframe has no content hash"));
   ASSERT_TRUE(db.Remove(2));
   db.Save();
   ids = PlaceDatabase::Open(Dir()).id_summary();
@@ -223,8 +222,8 @@ TEST_F(AddFramesTest, DamagedIdsEntriesAreCorruptDatabases) {
   const std::string path = Dir() + "/manifest.json";
   const nlohmann::json manifest = nlohmann::json::parse(ReadFileToString(path));
   for (const nlohmann::json& bad :
-       {nlohmann::json("x"), nlohmann::json{{"next_free", "12"}, {"removed", 0},
-                                            {"removed_since", ""}},
+       {nlohmann::json("x"),
+        nlohmann::json{{"next_free", "12"}, {"removed", 0}, {"removed_since", ""}},
         nlohmann::json{{"next_free", 0}, {"removed", 0}, {"removed_since", ""}},
         nlohmann::json{{"next_free", 4294967296}, {"removed", 0}, {"removed_since", ""}},
         nlohmann::json{{"next_free", 12}, {"removed", -1}, {"removed_since", ""}},
@@ -253,9 +252,8 @@ TEST_F(AddFramesTest, IdsFromAnOffsetOrFromNames) {
   AddReport r = db.AddFrames(ListImageFolder(dir, 2, 3), offset);
   EXPECT_EQ(r.ids, (std::vector<int32_t>{100, 101}));
   offset.id_offset = 10;  // 10 is keyframe 10's
-  EXPECT_TRUE(ThrowsWith<InvalidArgument>(
-      [&] { db.AddFrames(ListImageFolder(dir, 1, 1), offset); },
-      "would get id 10, which is taken by the keyframe of"));
+  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.AddFrames(ListImageFolder(dir, 1, 1), offset); },
+                                          "would get id 10, which is taken by the keyframe of"));
   offset.id_offset = INT32_MAX;
   std::vector<Frame> two = {FrameAt(RtabmapImage(60), 1), FrameAt(RtabmapImage(61), 2)};
   EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.AddFrames(two, offset); },
@@ -273,9 +271,9 @@ TEST_F(AddFramesTest, IdsFromAnOffsetOrFromNames) {
   };
   r = db.AddFrames({copy("042.jpg", 42), copy("0077", 43), copy("43.png", 44)}, names);
   EXPECT_EQ(r.ids, (std::vector<int32_t>{42, 77, 43}));
-  for (const std::string bad : {"frame_042.jpg", "-4.jpg", "1e3.png", "0.jpg", "000.jpg",
-                                "2147483648.jpg", "99999999999999999999.jpg", " 42.jpg",
-                                "42 .jpg", "４２.jpg", ".jpg"}) {
+  for (const std::string bad :
+       {"frame_042.jpg", "-4.jpg", "1e3.png", "0.jpg", "000.jpg", "2147483648.jpg",
+        "99999999999999999999.jpg", " 42.jpg", "42 .jpg", "４２.jpg", ".jpg"}) {
     const Frame f = copy(bad, 45);
     EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.AddFrames({f}, names); },
                                             "cannot take an id from the file name"))
@@ -286,13 +284,15 @@ TEST_F(AddFramesTest, IdsFromAnOffsetOrFromNames) {
   EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.AddFrames({from_bag}, names); },
                                           "has no file name to take an id from"));
   EXPECT_TRUE(ThrowsWith<InvalidArgument>(
-      [&] { db.AddFrames({copy("050.jpg", 47), copy("50.png", 48)}, names); },
+      [&] {
+        db.AddFrames({copy("050.jpg", 47), copy("50.png", 48)}, names);
+      },
       "which another frame given gets too"));
   EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.AddFrames({copy("5.jpg", 49)}, names); },
                                           "would get id 5, which is taken"));
   names.id_offset = 3;
-  EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.AddFrames({copy("51.jpg", 49)}, names); },
-                                          "not both"));
+  EXPECT_TRUE(
+      ThrowsWith<InvalidArgument>([&] { db.AddFrames({copy("51.jpg", 49)}, names); }, "not both"));
   // A bag frame (no file) is hashed by its pixels, and known again.
   AddOptions skip;
   skip.skip_existing = true;

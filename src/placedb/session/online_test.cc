@@ -1,28 +1,27 @@
 // Online mapping: keyframes added and removed while queries run, saved and
 // reopened.
 #include <gtest/gtest.h>
-
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <atomic>
-#include <filesystem>
-#include <fstream>
 #include <chrono>
 #include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <limits>
-#include <set>
 #include <opencv2/imgcodecs.hpp>
+#include <set>
 #include <thread>
 
-#include "placedb/dataset/image_folder.h"
 #include "placedb/builder/builder.h"
+#include "placedb/dataset/image_folder.h"
 #include "placedb/feature/whole_image.h"
 #include "placedb/query/query.h"
 #include "placedb/session/place_database.h"
-#include "placedb/util/testing.h"
 #include "placedb/session/storage_view.h"
+#include "placedb/util/testing.h"
 
 namespace placedb {
 namespace {
@@ -233,7 +232,9 @@ TEST_P(OnlineTest, TwoWritersSaveAndFourReadersAtOnce) {
       ++answered;
       // Snapshots stay valid whatever the writers do next.
       const std::optional<Keyframe> k = db.FindKeyframe(5 + r);
-      if (k) EXPECT_EQ(k->id, 5 + r);
+      if (k) {
+        EXPECT_EQ(k->id, 5 + r);
+      }
       EXPECT_FALSE(StorageView(db).database().info().empty());
     }
   };
@@ -317,8 +318,8 @@ TEST_P(OnlineTest, TwoAddsOfOneIdOneWins) {
 // An add that fails after its image was encoded leaves no file behind.
 TEST_P(OnlineTest, AFailedAddLeavesNothingBehind) {
   PlaceDatabase db = PlaceDatabase::Open(Dir());
-  const size_t files = std::distance(fs::directory_iterator(Dir() + "/images"),
-                                     fs::directory_iterator());
+  const size_t files =
+      std::distance(fs::directory_iterator(Dir() + "/images"), fs::directory_iterator());
   Frame bad = FrameOf(31);
   bad.timestamp = std::numeric_limits<double>::quiet_NaN();
   EXPECT_TRUE(
