@@ -638,8 +638,8 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0, 64))
       ->capture_default_str();
   app.add_option("--resident-limit-mb", resident_limit_mb,
-                 "the memory run is made without a resident limit and again with this "
-                 "OpenOptions::resident_limit_mb (0: only without)")
+                 "the memory runs are made without a resident limit, with this "
+                 "OpenOptions::resident_limit_mb (0: not), and with OpenOptions::read_features")
       ->check(CLI::Range(0, 1048576))
       ->capture_default_str();
   app.add_option("--cluster-radius", cluster_radius,
