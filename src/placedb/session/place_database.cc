@@ -140,7 +140,7 @@ void PlaceDatabase::Impl::StartPrefetch() {
       // while no query runs, under `state` (a writer waits for no more). A
       // read error leaves the rest to the queries, which report it.
       try {
-        std::vector<char> buffer;
+        std::vector<uint8_t> buffer;
         size_t next = 0;
         // While queries keep running, it looks again after 1, 2, 4 ... up
         // to 64 ms (a busy session does not wake it a thousand times a

@@ -206,7 +206,7 @@ std::vector<cv::KeyPoint> Database::Keypoints(size_t index) const {
     thread_local std::vector<uint8_t> buffer;
     const char* records;
     if (reads_features()) {
-      const size_t at = ReadFeatures(index, true, &buffer);  // resizes the buffer: first
+      const size_t at = ReadFeatures(index, false, true, &buffer);  // resizes the buffer: first
       records = reinterpret_cast<const char*>(buffer.data()) + at;
     } else {
       EnsureChecked(index);
@@ -236,30 +236,40 @@ void Database::CheckFeatures(size_t index) const {
   lazy.checked[index].store(1, std::memory_order_release);
 }
 
-size_t Database::ReadFeatures(size_t index, bool records, std::vector<uint8_t>* buffer) const {
-  const bool check = !FeaturesChecked(index);
+size_t Database::ReadBlocks(size_t index, bool rows, bool records,
+                            std::vector<uint8_t>* buffer) const {
   const uint64_t count = feature_count_[index];
-  const uint64_t row_bytes = count * static_cast<uint64_t>(descriptor_bytes_);
-  const uint64_t record_bytes = records || check ? count * ckp::kRecordBytes : 0;
+  const uint64_t row_bytes = rows ? count * static_cast<uint64_t>(descriptor_bytes_) : 0;
+  const uint64_t record_bytes = records ? count * ckp::kRecordBytes : 0;
   // Descriptor rows first: SURF's floats stay aligned.
   buffer->resize(row_bytes + record_bytes);
   const char* base = mapping_->data();
-  mapping_->ReadAt(static_cast<size_t>(reinterpret_cast<const char*>(mapped_descriptors_) - base) +
-                       row_offset_[index] * static_cast<uint64_t>(descriptor_bytes_),
-                   row_bytes, buffer->data());
+  if (row_bytes > 0) {
+    mapping_->ReadAt(
+        static_cast<size_t>(reinterpret_cast<const char*>(mapped_descriptors_) - base) +
+            row_offset_[index] * static_cast<uint64_t>(descriptor_bytes_),
+        row_bytes, buffer->data());
+  }
   if (record_bytes > 0) {
     mapping_->ReadAt(static_cast<size_t>(mapped_compact_keypoints_ - base) +
                          row_offset_[index] * ckp::kRecordBytes,
                      record_bytes, buffer->data() + row_bytes);
   }
+  return row_bytes;
+}
+
+size_t Database::ReadFeatures(size_t index, bool rows, bool records,
+                              std::vector<uint8_t>* buffer) const {
+  const bool check = !FeaturesChecked(index);
+  const size_t at = ReadBlocks(index, rows || check, records || check, buffer);
   if (check) {
     // The very bytes this use reads are the ones checked.
-    const std::string bad = FeatureProblem(
-        index, reinterpret_cast<const char*>(buffer->data()) + row_bytes, buffer->data());
+    const std::string bad =
+        FeatureProblem(index, reinterpret_cast<const char*>(buffer->data()) + at, buffer->data());
     if (!bad.empty()) PLACEDB_THROW_CORRUPT(lazy_->shown, ": keyframe ", keyframes_[index].id, bad);
     lazy_->checked[index].store(1, std::memory_order_release);
   }
-  return row_bytes;
+  return at;
 }
 
 std::string Database::FeatureProblem(size_t index, const char* records, const uint8_t* rows) const {
@@ -290,29 +300,17 @@ std::string Database::FeatureProblem(size_t index, const char* records, const ui
 }
 
 bool Database::CheckSomeInBackground(size_t* next, size_t max_keyframes,
-                                     std::vector<char>* buffer) const {
+                                     std::vector<uint8_t>* buffer) const {
   if (lazy_ == nullptr || !mapping_ || mapped_compact_keypoints_ == nullptr) return false;
   const LazyCheck& lazy = *lazy_;
-  const uint64_t records_at = static_cast<uint64_t>(mapped_compact_keypoints_ - mapping_->data());
-  const uint64_t rows_at =
-      static_cast<uint64_t>(reinterpret_cast<const char*>(mapped_descriptors_) - mapping_->data());
   size_t done = 0;
   for (; *next < keyframes_.size() && done < max_keyframes; ++*next) {
     const size_t i = *next;
     if (FeaturesChecked(i)) continue;
     ++done;
-    const uint64_t count = feature_count_[i];
-    const uint64_t record_bytes = count * ckp::kRecordBytes;
-    const uint64_t row_bytes = count * static_cast<uint64_t>(descriptor_bytes_);
-    // Descriptor rows first in the buffer: SURF's floats stay aligned.
-    buffer->resize(row_bytes + record_bytes);
-    mapping_->ReadAt(rows_at + row_offset_[i] * static_cast<uint64_t>(descriptor_bytes_), row_bytes,
-                     buffer->data());
-    mapping_->ReadAt(records_at + row_offset_[i] * ckp::kRecordBytes, record_bytes,
-                     buffer->data() + row_bytes);
+    const size_t at = ReadBlocks(i, true, true, buffer);
     // Damage is left unmarked: the first use reads it again and reports it.
-    if (FeatureProblem(i, buffer->data() + row_bytes,
-                       reinterpret_cast<const uint8_t*>(buffer->data()))
+    if (FeatureProblem(i, reinterpret_cast<const char*>(buffer->data()) + at, buffer->data())
             .empty())
       lazy.checked[i].store(1, std::memory_order_release);
   }
@@ -355,7 +353,7 @@ void Database::VerifyAll() const {
 DescriptorBlock Database::Descriptors(size_t index, std::vector<uint8_t>* buffer) const {
   if (!reads_features()) return Descriptors(index);
   if (!has_features_) PLACEDB_THROW_INVALID(kNoFeatures);
-  ReadFeatures(index, false, buffer);
+  ReadFeatures(index, true, false, buffer);
   DescriptorBlock block;
   block.type = feature_type_;
   block.rows = static_cast<int>(feature_count_[index]);

@@ -169,7 +169,8 @@ class Database {
   // keyframes are left after it (false at once for a database with nothing
   // to check). For a session's background thread (OpenOptions::prefetch):
   // thread-safe against readers, not against changes of the database.
-  bool CheckSomeInBackground(size_t* next, size_t max_keyframes, std::vector<char>* buffer) const;
+  bool CheckSomeInBackground(size_t* next, size_t max_keyframes,
+                             std::vector<uint8_t>* buffer) const;
   // The version of the keyframe file this database was read from (0: never
   // read from a file).
   uint32_t file_format_version() const { return file_format_version_; }
@@ -276,11 +277,13 @@ class Database {
     if (lazy_ != nullptr && !FeaturesChecked(index)) CheckFeatures(index);
   }
   void CheckFeatures(size_t index) const;
-  // Reads keyframe `index`'s descriptor rows, then (with `records`, or when
-  // they are to be checked now) its keypoint records from the file into
-  // *buffer, checks them if they are not checked yet (CorruptDatabase), and
-  // returns where the records start in *buffer (rows.size() when not read).
-  size_t ReadFeatures(size_t index, bool records, std::vector<uint8_t>* buffer) const;
+  // Reads keyframe `index`'s descriptor rows (with `rows`), then its keypoint
+  // records (with `records`) from the file into *buffer, unchecked, and
+  // returns where the records start in *buffer (the rows' size).
+  size_t ReadBlocks(size_t index, bool rows, bool records, std::vector<uint8_t>* buffer) const;
+  // ReadBlocks for a use: when the keyframe is not checked yet both blocks
+  // are read and checked (CorruptDatabase), then flagged.
+  size_t ReadFeatures(size_t index, bool rows, bool records, std::vector<uint8_t>* buffer) const;
   // Why keyframe `index`'s features, given their compact keypoint records
   // and descriptor rows, are impossible (to follow "keyframe ID"), or "".
   std::string FeatureProblem(size_t index, const char* records, const uint8_t* rows) const;

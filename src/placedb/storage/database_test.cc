@@ -736,7 +736,7 @@ TEST_F(DatabaseFileTest, BackgroundCheckLeavesDamageToTheFirstUse) {
   bad[rows + 32 * second + 9] = static_cast<char>(bad[rows + 32 * second + 9] ^ 0x10);
   WriteBytes(bin_, bad);
   const Database db = Database::Load(Dir());
-  std::vector<char> buffer;
+  std::vector<uint8_t> buffer;
   size_t next = 0;
   EXPECT_TRUE(db.CheckSomeInBackground(&next, 1, &buffer));
   EXPECT_EQ(next, 1u);
@@ -1344,7 +1344,8 @@ TEST_F(DatabaseFileTest, StoredImageNamesStayInsideTheDatabase) {
         << EscapeForTerminal(name);
   }
   // Plain names load; so does a keyframe without a stored image.
-  for (const std::string& name : {"images/000001.png", "images/a-b_c.D9.png", ""}) {
+  for (const std::string& name :
+       std::vector<std::string>{"images/000001.png", "images/a-b_c.D9.png", ""}) {
     std::string good = bytes_;
     ASSERT_TRUE(SetStrings(&good, 0, source, name));
     WriteResealed(good);
@@ -1547,7 +1548,8 @@ TEST(DatabaseRowsTest, AddedAndQueryFeaturesAreChecked) {
   ASSERT_GT(features.size(), 3u);
   Keyframe k = model;
   k.id = 77;
-  for (const std::string& name : {"../victim.png", "/tmp/x.png", "images/a/b.png"}) {
+  for (const std::string& name :
+       std::vector<std::string>{"../victim.png", "/tmp/x.png", "images/a/b.png"}) {
     k.image_file = name;
     EXPECT_TRUE(
         ThrowsWith<InvalidArgument>([&] { db.AddKeyframe(k, features); }, "stored image name"))

@@ -1,7 +1,7 @@
 #include "placedb/util/file_io.h"
 
-#include <gtest/gtest.h>
 #include <fcntl.h>
+#include <gtest/gtest.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -316,7 +316,6 @@ TEST(FileIoTest, BinaryRoundTripAndTruncation) {
   }
 }
 
-
 // ---- names and text from files (issue 17) -------------------------------------
 
 TEST(PlainFileNameTest, OnlyPlainNamesInsideOneFolder) {
@@ -324,7 +323,7 @@ TEST(PlainFileNameTest, OnlyPlainNamesInsideOneFolder) {
     EXPECT_TRUE(IsPlainFileName(name)) << name;
   }
   EXPECT_TRUE(IsPlainFileName(std::string(255, 'a')));
-  for (const std::string name :
+  for (const std::string& name :
        {std::string(""), std::string("."), std::string(".."), std::string(".hidden"),
         std::string("../x"), std::string("a/b"), std::string("/etc/passwd"), std::string("a\\b"),
         std::string("a b"), std::string("a\nb"), std::string("a\x1b"), std::string("a\0b", 3),
@@ -342,11 +341,11 @@ TEST(TerminalTextTest, ControlBytesAndInvalidUtf8AreEscaped) {
   EXPECT_EQ(EscapeForTerminal("\x1b[2J\n\r\t"), "\\x1b[2J\\x0a\\x0d\\x09");
   EXPECT_EQ(EscapeForTerminal(std::string("a\0b", 3)), "a\\x00b");
   EXPECT_EQ(EscapeForTerminal("\x7f"), "\\x7f");
-  EXPECT_EQ(EscapeForTerminal("\xc2\x9b"), "\\xc2\\x9b");  // C1 CSI
-  EXPECT_EQ(EscapeForTerminal("\xc0\xaf"), "\\xc0\\xaf");  // overlong '/'
-  EXPECT_EQ(EscapeForTerminal("\xed\xa0\x80"), "\\xed\\xa0\\x80");  // a surrogate
+  EXPECT_EQ(EscapeForTerminal("\xc2\x9b"), "\\xc2\\x9b");                    // C1 CSI
+  EXPECT_EQ(EscapeForTerminal("\xc0\xaf"), "\\xc0\\xaf");                    // overlong '/'
+  EXPECT_EQ(EscapeForTerminal("\xed\xa0\x80"), "\\xed\\xa0\\x80");           // a surrogate
   EXPECT_EQ(EscapeForTerminal("\xf4\x90\x80\x80"), "\\xf4\\x90\\x80\\x80");  // above U+10FFFF
-  EXPECT_EQ(EscapeForTerminal("\xe2\x82"), "\\xe2\\x82");  // cut short
+  EXPECT_EQ(EscapeForTerminal("\xe2\x82"), "\\xe2\\x82");                    // cut short
   EXPECT_TRUE(IsValidUtf8("caf\xc3\xa9"));
   EXPECT_FALSE(IsValidUtf8("caf\xe9"));
   // Any bytes: the result is valid UTF-8 with no control character.
