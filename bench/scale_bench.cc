@@ -638,8 +638,9 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0, 64))
       ->capture_default_str();
   app.add_option("--resident-limit-mb", resident_limit_mb,
-                 "the memory runs are made without a resident limit, with this "
-                 "OpenOptions::resident_limit_mb (0: not), and with OpenOptions::read_features")
+                 "the memory runs are made with the default options, with the features mapped "
+                 "(OpenOptions::read_features_above_mb 0), and mapped with this "
+                 "OpenOptions::resident_limit_mb (0: not)")
       ->check(CLI::Range(0, 1048576))
       ->capture_default_str();
   app.add_option("--cluster-radius", cluster_radius,
@@ -854,21 +855,21 @@ int main(int argc, char** argv) {
         // In a process of its own (forked: it starts with none of this
         // process's mapped pages resident), as a robot's would be: the
         // sessions' resident limit is the process's.
-        // Without a limit, with the limit, and with the features read rather
-        // than mapped (OpenOptions::read_features, no limit).
+        // The default options (the map's size decides whether the features
+        // are read or mapped: OpenOptions::read_features_above_mb), the
+        // features mapped without a limit, and mapped with the limit.
         struct MemoryConfig {
           int limit;
-          bool read;
+          bool mapped;
         };
-        std::vector<MemoryConfig> configs = {{0, false}};
-        if (resident_limit_mb > 0) configs.push_back({resident_limit_mb, false});
-        configs.push_back({0, true});
+        std::vector<MemoryConfig> configs = {{0, false}, {0, true}};
+        if (resident_limit_mb > 0) configs.push_back({resident_limit_mb, true});
         for (const MemoryConfig& mc : configs)
           memory_runs.push_back(InChildProcess([&] {
             const int limit = mc.limit;
             placedb::OpenOptions limited = open_options;
             limited.resident_limit_mb = limit;
-            limited.read_features = mc.read;
+            if (mc.mapped) limited.read_features_above_mb = 0;
             const Resident before_session = ResidentNow();
             const placedb::PlaceDatabase session =
                 placedb::PlaceDatabase::Open(dir.string(), limited);
@@ -917,14 +918,15 @@ int main(int argc, char** argv) {
                 "resident +{:.0f} MiB private, +{:.0f} "
                 "MiB file-backed over the process before its open (the process: {:.0f} + {:.0f} "
                 "MiB); p50 {:.2f} ms p99 {:.2f} ms recall@1 {:.3f}; {}\n",
-                limit, mc.read ? ", features read" : "", memory_queries,
-                after.anon - before_session.anon, after.file - before_session.file, after.anon,
-                after.file, s.p50, s.p99, static_cast<double>(correct) / memory_queries,
+                limit, session.reads_features() ? ", features read" : ", features mapped",
+                memory_queries, after.anon - before_session.anon, after.file - before_session.file,
+                after.anon, after.file, s.p50, s.p99, static_cast<double>(correct) / memory_queries,
                 faults.Text());
             return nlohmann::json{
                 {"queries", memory_queries},
                 {"resident_limit_mb", limit},
-                {"read_features", mc.read},
+                {"read_features", session.reads_features()},
+                {"default_options", !mc.mapped},
                 {"resident_increase", ResidentJson({after.anon - before_session.anon,
                                                     after.file - before_session.file})},
                 {"latency_ms", StatsJson(s)},
@@ -990,6 +992,7 @@ int main(int argc, char** argv) {
           {"resident_after_runs", ResidentJson({resident_runs.anon - resident_before.anon,
                                                 resident_runs.file - resident_before.file})},
           {"runs_queries", runs_queries},
+          {"reads_features", db.reads_features()},
           {"verify_ms", verify_ms},
           {"popcount_limit_ms", limit_ms},
           {"modes", nlohmann::json::array()}};

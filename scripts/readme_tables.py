@@ -217,13 +217,18 @@ def scale_table(j):
     for keyframes, m in memory_runs:
         r = m["resident_increase"]
         limit = m.get("resident_limit_mb", 0)
-        if m.get("read_features"):
-            limit_text = ("with `read_features`: the examined keyframes' features read from the file, "
-                          "not mapped; no resident limit")
+        reads = ("the examined keyframes' features read from the file rather than mapped" if m.get("read_features")
+                 else "the features mapped")
+        if "default_options" not in m:  # a run of a scale_bench before read_features_above_mb
+            limit_text = (f"with `resident_limit_mb` {limit}" if limit > 0 else
+                          "with `read_features`" if m.get("read_features") else "without a resident limit")
+        elif m["default_options"]:
+            limit_text = f"with the default options: {reads}, as the keyframe file is " + (
+                "above" if m.get("read_features") else "within") + " `read_features_above_mb`"
         elif limit > 0:
-            limit_text = f"with `resident_limit_mb` {limit}"
+            limit_text = f"with `resident_limit_mb` {limit} and {reads}: `read_features_above_mb` 0"
         else:
-            limit_text = "without a resident limit, the default"
+            limit_text = f"without a resident limit and with {reads}: `read_features_above_mb` 0"
         by_file = m.get("resident_by_file_mib", {})
         files = ", ".join(f"{name.split('.')[0]} {mib:.0f}" for name, mib in sorted(by_file.items()))
         rows += ["", f"At {keyframes} keyframes, a process of its own opened a session ({limit_text}) and asked "
@@ -255,10 +260,15 @@ def scale_table(j):
             "files in the page cache; in brackets the first open, with every file of the database dropped from "
             "the page cache first (posix_fadvise DONTNEED). Resident memory: what the open added to the "
             "process, private (RssAnon, the heap) and file-backed (RssFile, pages of the mapped files read so "
-            "far); then the same after all the runs of the table (exhaustive search reads every page). Verify: `placedb verify` (every byte). "
+            "far); then the same after all the runs of the table (exhaustive search maps every page where the features are mapped). Verify: `placedb verify` (every byte). "
             "Popcount limit: "
             f"{j['ns_per_distance']:.3f} ns per distance ({j['hamming_kernel']} kernel, in cache) × query features × "
             "database features.")
+    reading = [SizeLabel(s) for s in j["sizes"] if s.get("reads_features")]
+    if reading:
+        note += (f" At {', '.join(reading)} keyframes the sessions read the examined keyframes' features from the "
+                 "file rather than mapping them (the default: the keyframe file is above `read_features_above_mb`, "
+                 "1024 MiB), so exhaustive search there reads every keyframe rather than mapping it.")
     if j.get("compare_stored"):
         note += (" \"N stored\": a database of the same keyframes keeping at most N features per keyframe "
                  "(`stored_features`, the strongest spread over the image), with the same queries, which keep "

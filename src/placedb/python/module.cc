@@ -762,6 +762,9 @@ PYBIND11_MODULE(placedb, m) {
                              "values per keyframe of the whole-image channel (width x height), "
                              "0 when the database has none")
       .def_property_readonly("directory", &PlaceDatabase::directory)
+      .def_property_readonly("reads_features", &PlaceDatabase::reads_features,
+                             "whether queries read the keyframes' features from the file "
+                             "(read_features, read_features_above_mb) rather than mapping them")
       .def_property_readonly(
           "manifest", [](const PlaceDatabase& db) { return FromJsonText(db.manifest_json()); },
           "the manifest (every build setting, counts, sizes, creation info), a dict")

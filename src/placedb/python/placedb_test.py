@@ -79,6 +79,10 @@ class PlaceDbTest(unittest.TestCase):
         # The same through open() and with the options checked.
         db2 = placedb.PlaceDatabase.open(self.db_dir, threads=2, expected_features="orb")
         self.assertEqual(db2.size, 20)
+        # A small map keeps its features mapped; asked to, or by its size, reads them.
+        self.assertFalse(db2.reads_features)
+        self.assertTrue(placedb.PlaceDatabase(self.db_dir, read_features=True).reads_features)
+        self.assertFalse(placedb.PlaceDatabase(self.db_dir, read_features_above_mb=0).reads_features)
         part = placedb.PlaceDatabase(self.db_dir, partition=(1, 2))
         self.assertEqual(part.keyframe_ids, list(range(11, 21)))
         some = placedb.PlaceDatabase(self.db_dir, keyframes=[3, 5])

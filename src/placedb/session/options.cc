@@ -177,6 +177,11 @@ const OptionTable<OpenOptions>& OpenOptions::Table() {
            "queries read the examined keyframes' features from the file instead of mapping "
            "them: resident memory stays near the index's, at a read per keyframe",
            BoolFlag::kSwitch, kCallers);
+    t.Number("read_features_above_mb", PLACEDB_MEMBER(O, read_features_above_mb),
+             OptionRange::Closed(0, 1048576),
+             "queries read the examined keyframes' features, as read_features, when the keyframe "
+             "file is larger than this (MiB; 0: size never decides)",
+             kCallers);
     t.Number("resident_limit_mb", PLACEDB_MEMBER(O, resident_limit_mb),
              OptionRange::Closed(0, 1048576),
              "above this file-backed resident memory (MiB) after a query, let go of the "

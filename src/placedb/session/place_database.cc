@@ -441,6 +441,7 @@ PlaceDatabase PlaceDatabase::Open(const std::string& dir, const OpenOptions& opt
   load.subset = options.subset;
   load.contents = options.keyframe_table ? LoadContents::kKeyframeTable : LoadContents::kAll;
   load.read_features = options.read_features;
+  load.read_features_above_bytes = static_cast<uint64_t>(options.read_features_above_mb) << 20;
   impl->db = Database::Load(dir, load);
   const Database& db = impl->db;
   impl->keyframe_table = options.keyframe_table;
@@ -545,6 +546,11 @@ PlaceDatabase::VerifyReport PlaceDatabase::Verify() const {
 uint64_t PlaceDatabase::keyframes_bytes() const {
   std::shared_lock<FairSharedMutex> lock(impl_->state);
   return impl_->db.keyframes_bytes();
+}
+
+bool PlaceDatabase::reads_features() const {
+  std::shared_lock<FairSharedMutex> lock(impl_->state);
+  return impl_->db.has_features() && impl_->db.reads_features();
 }
 
 size_t PlaceDatabase::num_features() const {

@@ -108,6 +108,17 @@ struct OpenOptions {
   // are checked when the keyframe's first use is a read). Only for a
   // version 3 database opened with its features. Default false.
   bool read_features = false;
+  // The same, decided by the map's size: queries read the features when the
+  // database's keyframe file is larger than this many MiB, so that a map
+  // too large to keep mapped (100 000 keyframes of ~400 ORB features: a
+  // 1.7 GiB keyframe file) does not grow the process by it, while a smaller
+  // one keeps the mapping's speed (a read per examined keyframe costs about
+  // 0.2 ms a query at 10 000 keyframes here; at 100 000, where the queries'
+  // first touches of mapped pages cost more, reading is about as fast:
+  // README, "Retrieval at scale"). reads_features() says what was chosen.
+  // Range [0, 1048576]; 0: size never decides (read_features alone does).
+  // Default 1024.
+  int read_features_above_mb = 1024;
 
   // The options' names, defaults, ranges and help (util/option_table.h).
   static const OptionTable<OpenOptions>& Table();
@@ -222,6 +233,11 @@ class PlaceDatabase {
   // Keyframes answering now (removed ones left out).
   size_t size() const;
   bool empty() const { return size() == 0; }
+  // Whether queries read the keyframes' features from the file now
+  // (OpenOptions::read_features, read_features_above_mb) rather than
+  // through its mapping: false for a database whose features are held in
+  // memory (a version 2 file, a changed database) or a keyframe table.
+  bool reads_features() const;
   // The keyframe with this id (a copy), or nullopt (none, or removed).
   std::optional<Keyframe> FindKeyframe(int32_t id) const;
   // The ids of the keyframes answering now, in storage order.

@@ -252,6 +252,7 @@ TEST_F(SearchTest, ReadFeaturesAnswerTheSameWithoutMappingTheKeyframes) {
   {
     const PlaceDatabase db = PlaceDatabase::Open(Dir(), plain);
     EXPECT_FALSE(StorageView(db).database().reads_features());
+    EXPECT_FALSE(db.reads_features());  // a small map: below read_features_above_mb
     // A small file is all resident after the open: start with none of it.
     StorageView(db).database().mapped_file()->ReleaseResidentPages();
     const double opened_kb = MappedRssKb(Dir(), "keyframes.");
@@ -261,8 +262,19 @@ TEST_F(SearchTest, ReadFeaturesAnswerTheSameWithoutMappingTheKeyframes) {
     mapped_growth_kb = MappedRssKb(Dir(), "keyframes.") - opened_kb;
     details.push_back(db.Explain(Features(41), expected[0].ranked[0].keyframe_id, bow));
   }
+  {
+    // The map's size decides when read_features does not: in MiB, above.
+    OpenOptions by_size = plain;
+    by_size.read_features_above_mb = 1;
+    const PlaceDatabase sized = PlaceDatabase::Open(Dir(), by_size);
+    const uint64_t bytes = StorageView(sized).database().keyframes_bytes();
+    EXPECT_EQ(sized.reads_features(), bytes > (uint64_t{1} << 20)) << bytes;
+    by_size.read_features_above_mb = 0;
+    EXPECT_FALSE(PlaceDatabase::Open(Dir(), by_size).reads_features());
+  }
   const PlaceDatabase db = PlaceDatabase::Open(Dir(), reading);
   EXPECT_TRUE(StorageView(db).database().reads_features());
+  EXPECT_TRUE(db.reads_features());
   StorageView(db).database().mapped_file()->ReleaseResidentPages();
   const double opened_kb = MappedRssKb(Dir(), "keyframes.");
   size_t at = 0;

@@ -1324,7 +1324,9 @@ Database Database::Load(const std::string& dir, const LoadOptions& options) {
     if (static_cast<uint64_t>(features) != Field<uint64_t>(file->data(), 40))
       disagree("the number of features");
     db.info_ = std::move(manifest);
-    db.read_features_ = options.read_features;
+    db.read_features_ =
+        options.read_features || (options.read_features_above_bytes > 0 &&
+                                  expected_bytes > options.read_features_above_bytes);
     db.keyframes_file_ = name;
     db.keyframes_bytes_ = expected_bytes;
     return db;

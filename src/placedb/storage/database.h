@@ -96,6 +96,10 @@ struct LoadOptions {
   // mapping as before; a database that is changed (AddKeyframe) keeps its
   // features in memory.
   bool read_features = false;
+  // The same, decided by size: features are read when the keyframe file is
+  // larger than this many bytes (0: size never decides; read_features
+  // alone does).
+  uint64_t read_features_above_bytes = 0;
 };
 
 class Database {

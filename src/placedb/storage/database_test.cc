@@ -180,6 +180,14 @@ void RoundTrip(const ExtractorOptions& options, bool with_poses) {
     EXPECT_EQ(0, std::memcmp(r.data, e.data, static_cast<size_t>(r.rows) * r.row_bytes));
     testing_util::ExpectSameKeypoints(reader.Keypoints(i), db.Keypoints(i));
   }
+  // The size decides (LoadOptions::read_features_above_bytes): a file
+  // larger than the threshold is read, one of the threshold's size is not.
+  const uint64_t file_bytes = FileSize(tmp.Path(loaded.keyframes_file()));
+  LoadOptions by_size;
+  by_size.read_features_above_bytes = file_bytes - 1;
+  EXPECT_TRUE(Database::Load(tmp.Path(), by_size).reads_features());
+  by_size.read_features_above_bytes = file_bytes;
+  EXPECT_FALSE(Database::Load(tmp.Path(), by_size).reads_features());
   // Without the option, the buffer is not used: the rows are the mapping's.
   std::vector<uint8_t> unused;
   EXPECT_EQ(loaded.Descriptors(0, &unused).data, loaded.Descriptors(0).data);
