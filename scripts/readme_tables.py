@@ -219,10 +219,7 @@ def scale_table(j):
         limit = m.get("resident_limit_mb", 0)
         reads = ("the examined keyframes' features read from the file rather than mapped" if m.get("read_features")
                  else "the features mapped")
-        if "default_options" not in m:  # a run of a scale_bench before read_features_above_mb
-            limit_text = (f"with `resident_limit_mb` {limit}" if limit > 0 else
-                          "with `read_features`" if m.get("read_features") else "without a resident limit")
-        elif m["default_options"]:
+        if m["default_options"]:
             limit_text = f"with the default options: {reads}, as the keyframe file is " + (
                 "above" if m.get("read_features") else "within") + " `read_features_above_mb`"
         elif limit > 0:
