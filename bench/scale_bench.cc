@@ -46,9 +46,10 @@
 // keyframes it runs on --exhaustive-queries of the queries (spread evenly),
 // and every mode's recall is also given on that subset.
 //
-// At --compare-stored-at keyframes the bench also builds databases that keep
-// fewer features per keyframe (--compare-stored: BuildOptions::
-// stored_features, spread over the image; queries keep all) and runs bow on
+// At each of --compare-stored-at keyframes the bench also builds databases
+// that keep fewer features per keyframe (--compare-stored: BuildOptions::
+// stored_features, those matched in the --track-neighbours nearest
+// keyframes first, spread over the image; queries keep all) and runs bow on
 // them with the same queries: what disk and memory they save against the
 // recall they lose.
 //
@@ -588,8 +589,9 @@ int main(int argc, char** argv) {
   double deadline_ms = 2.0, cluster_radius = 0.5, whole_image_weight = 50.0;
   int whole_image_candidates = 2, memory_queries = 10000, partitions = 4;
   int resident_limit_mb = 768, stored_features = 0;
-  std::vector<int> compare_stored = {250, 200};
-  size_t compare_stored_at = 10000;
+  int track_neighbours = placedb::BuildOptions().track_neighbours;
+  std::vector<int> compare_stored = {210};
+  std::vector<size_t> compare_stored_at = {10000, 100000};
   std::string out = "out/bench/scale", json_path, data = PLACEDB_DATA_DIR;
   app.add_option("--sizes", sizes, "database sizes, keyframes")
       ->delimiter(',')
@@ -661,6 +663,11 @@ int main(int argc, char** argv) {
                  "stored_features; 0: all); queries keep every feature")
       ->check(CLI::Range(0, 100000))
       ->capture_default_str();
+  app.add_option("--track-neighbours", track_neighbours,
+                 "under a feature budget, the features matched in this many nearest keyframes "
+                 "first (BuildOptions::track_neighbours; 0: spread alone)")
+      ->check(CLI::Range(0, 32))
+      ->capture_default_str();
   app.add_option("--compare-stored", compare_stored,
                  "at --compare-stored-at keyframes, databases keeping these --stored-features too "
                  "(bow runs only): disk and memory against recall")
@@ -668,7 +675,8 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 100000))
       ->capture_default_str();
   app.add_option("--compare-stored-at", compare_stored_at,
-                 "the size of the --compare-stored databases (none when it is not one of --sizes)")
+                 "the sizes of the --compare-stored databases (those of --sizes)")
+      ->delimiter(',')
       ->capture_default_str();
   app.add_option("--fast-threshold", fast_threshold,
                  "ORB's FAST threshold (the library's default 20 leaves about 210 features on "
@@ -698,6 +706,7 @@ int main(int argc, char** argv) {
                               {"features_per_frame", features},
                               {"fast_threshold", fast_threshold},
                               {"stored_features", stored_features},
+                              {"track_neighbours", track_neighbours},
                               {"compare_stored", compare_stored},
                               {"queries", num_queries},
                               {"exhaustive_queries_above_1000", exhaustive_queries},
@@ -713,7 +722,7 @@ int main(int argc, char** argv) {
                               {"sizes", nlohmann::json::array()}};
     std::vector<std::string> table;
     // Each size with --stored-features (the main runs), and after the size
-    // --compare-stored-at the same keyframes keeping fewer features (bow runs
+    // of --compare-stored-at the same keyframes keeping fewer features (bow runs
     // only).
     struct Config {
       size_t n;
@@ -723,7 +732,9 @@ int main(int argc, char** argv) {
     std::vector<Config> configs;
     for (const size_t n : sizes) {
       configs.push_back({n, stored_features, true});
-      if (n != compare_stored_at) continue;
+      if (std::find(compare_stored_at.begin(), compare_stored_at.end(), n) ==
+          compare_stored_at.end())
+        continue;
       for (const int b : compare_stored)
         if (b != stored_features) configs.push_back({n, b, false});
     }
@@ -738,6 +749,7 @@ int main(int argc, char** argv) {
       build.features.orb.max_features = features;
       build.features.orb.fast_threshold = fast_threshold;
       build.stored_features = config.stored;
+      build.track_neighbours = track_neighbours;
       build.store_images = false;
       build.index = placedb::IndexKind::kBow;
       build.threads = threads_build;

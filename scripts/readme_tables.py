@@ -186,6 +186,18 @@ def scale_table(j):
                            f"{100 * (m['recall_at_1'] - b['recall_at_1']):+.1f} points, p50 "
                            f"{m['latency_ms']['p50'] - b['latency_ms']['p50']:+.2f} ms, p99 "
                            f"{m['latency_ms']['p99'] - b['latency_ms']['p99']:+.2f} ms")
+            if s.get("stored_features", 0) > 0:
+                # What the budget costs: the same run on the same keyframes keeping every feature.
+                main = [b for t in j["sizes"] if t["keyframes"] == s["keyframes"]
+                        and t.get("stored_features", 0) == j.get("stored_features", 0) for b in t["modes"]
+                        if b["mode"] == m["mode"] and b["deadline_ms"] == m["deadline_ms"]
+                        and b.get("guided_candidates", 0) == m.get("guided_candidates", 0)
+                        and b.get("whole_image_weight", 0) == m.get("whole_image_weight", 0)]
+                if main:
+                    b = main[0]
+                    vs += (f"; vs every feature: recall@1 {100 * (m['recall_at_1'] - b['recall_at_1']):+.1f}, "
+                           f"place {100 * (m['place_recall_at_1'] - b['place_recall_at_1']):+.1f} points, "
+                           f"p99 {m['latency_ms']['p99'] - b['latency_ms']['p99']:+.2f} ms")
             if m.get("faults", {}).get("major_faults", 0) > 0:
                 vs += FaultText(m)
             vs = vs.lstrip("; ")
@@ -267,8 +279,11 @@ def scale_table(j):
                  "file rather than mapping them (the default: the keyframe file is above `read_features_above_mb`, "
                  "1024 MiB), so exhaustive search there reads every keyframe rather than mapping it.")
     if j.get("compare_stored"):
+        track = j.get("track_neighbours", 0)
+        ranked = (f"those matched in the {track} nearest keyframes first (`track_neighbours`), the strongest "
+                  "spread over the image" if track > 0 else "the strongest spread over the image")
         note += (" \"N stored\": a database of the same keyframes keeping at most N features per keyframe "
-                 "(`stored_features`, the strongest spread over the image), with the same queries, which keep "
+                 f"(`stored_features`: {ranked}), with the same queries, which keep "
                  "all their features; bow runs only.")
     return "\n".join(rows) + "\n\n" + note
 

@@ -39,13 +39,22 @@ struct BuildOptions {
   // Stored image area divisor: 1, 4 or 16. Default 1 (full size).
   int resize = 1;
   ExtractorOptions features;
-  // Most features a keyframe keeps of those extracted (0: all), chosen
+  // Most features a keyframe keeps of those extracted (0: all): those
+  // matched in neighbouring keyframes first (track_neighbours), and chosen
   // spread over its stored image (feature/spread.h: every cell of an 8 x 6
   // grid's strongest before any cell's second). Queries keep every feature
   // extraction finds. Disk, memory and scoring time shrink with it, recall
   // can too (README, "Retrieval at scale": the scale benchmark). Range
   // [0, 100000]. Default 0.
   int stored_features = 0;
+  // Under stored_features, the features matched in this many neighbouring
+  // keyframes come first (builder/tracks.h: the nearest by camera position
+  // when every frame has a pose, else the nearest in the frames' order), a
+  // feature matched in more of them before one matched in fewer; within
+  // that, spread as above. 0: spread alone. The build matches each keyframe
+  // with its neighbours once (a few % of the extraction's time at 4).
+  // Range [0, 32]. Default 4.
+  int track_neighbours = 4;
   // Extract features on the whole (resized) frame and keep those inside the
   // crop, instead of on the stored crop alone. Descriptors near the crop's
   // border then see the real pixels around them, where on the crop alone ORB

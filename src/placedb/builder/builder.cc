@@ -16,6 +16,7 @@
 #include <mutex>
 #include <opencv2/imgcodecs.hpp>
 
+#include "placedb/builder/tracks.h"
 #include "placedb/feature/spread.h"
 #include "placedb/feature/whole_image.h"
 #include "placedb/image/resize.h"
@@ -115,7 +116,10 @@ ProcessedFrame ProcessFrame(const Frame& frame, const cv::Mat& image, const Buil
   k.stored_size = out.stored_image.size();
   k.scale = cropped.cols > 0 ? static_cast<double>(k.stored_size.width) / cropped.cols : 1.0;
   ExtractStored(image, options, extractor, &out);
-  KeepSpread(&out.features, static_cast<size_t>(options.stored_features), k.stored_size);
+  // A budget ranked by tracks needs the neighbours' features: the caller's.
+  if (options.track_neighbours == 0) {
+    KeepSpread(&out.features, static_cast<size_t>(options.stored_features), k.stored_size);
+  }
   // The whole-image row is the whole frame's (as given: before crop and
   // resize), also for a cropped keyframe: what a query's Extract gives.
   // The extractor computed it on the stored image already when that is
@@ -128,6 +132,22 @@ ProcessedFrame ProcessFrame(const Frame& frame, const cv::Mat& image, const Buil
     out.features.whole_image = ComputeWholeImageDescriptor(image, options.features.whole_image);
   }
   return out;
+}
+
+void KeepTrackedOnline(const Database& db, const BuildOptions& options, ProcessedFrame* frame) {
+  if (options.stored_features == 0 || options.track_neighbours == 0) return;
+  std::vector<std::optional<Pose>> poses;
+  poses.reserve(db.size());
+  for (const Keyframe& k : db.keyframes()) poses.push_back(k.pose);
+  std::vector<FeatureSet> stored;
+  for (const size_t i : TrackNeighboursOfNew(poses, frame->keyframe.pose,
+                                             static_cast<size_t>(options.track_neighbours))) {
+    stored.push_back(db.Features(i));
+  }
+  std::vector<const FeatureSet*> others;
+  for (const FeatureSet& f : stored) others.push_back(&f);
+  KeepSpread(&frame->features, static_cast<size_t>(options.stored_features),
+             frame->keyframe.stored_size, TrackCounts(frame->features, others));
 }
 
 std::string BuildReportJson(const BuildReport& report, const std::string& database, int indent) {
@@ -260,6 +280,35 @@ struct IndexFiles {
   uint64_t bytes = 0;
 };
 
+// The feature budget ranked by tracks (builder/tracks.h) over every
+// keyframe built: the matches are counted against the neighbours' whole
+// sets, then each keyframe keeps its budget.
+void KeepTracked(const BuildOptions& options, std::vector<std::optional<ProcessedFrame>>* results,
+                 ThreadPool* pool) {
+  std::vector<ProcessedFrame*> built;
+  for (std::optional<ProcessedFrame>& r : *results) {
+    if (r) built.push_back(&*r);
+  }
+  std::vector<std::optional<Pose>> poses;
+  poses.reserve(built.size());
+  for (const ProcessedFrame* p : built) poses.push_back(p->keyframe.pose);
+  const std::vector<std::vector<size_t>> neighbours =
+      TrackNeighbours(poses, static_cast<size_t>(options.track_neighbours));
+  std::vector<std::vector<int>> counts(built.size());
+  ProgressBar progress("tracks", built.size(), options.progress);
+  pool->ParallelFor(built.size(), [&](size_t i) {
+    std::vector<const FeatureSet*> others;
+    for (const size_t j : neighbours[i]) others.push_back(&built[j]->features);
+    counts[i] = TrackCounts(built[i]->features, others);
+    progress.Advance();
+  });
+  progress.Finish();
+  pool->ParallelFor(built.size(), [&](size_t i) {
+    KeepSpread(&built[i]->features, static_cast<size_t>(options.stored_features),
+               built[i]->keyframe.stored_size, counts[i]);
+  });
+}
+
 IndexFiles WriteBowIndex(const Database& db, const BuildOptions& options, const std::string& dir,
                          ThreadPool* pool) {
   std::shared_ptr<const Vocabulary> vocabulary;
@@ -367,6 +416,9 @@ BuildReport BuildDatabase(const std::vector<Frame>& frames, const BuildOptions& 
       progress.Advance();
     });
     progress.Finish();
+    if (options.stored_features > 0 && options.track_neighbours > 0) {
+      KeepTracked(options, &results, &pool);
+    }
 
     BuildReport report;
     report.num_frames = frames.size();

@@ -47,12 +47,23 @@ struct ProcessedFrame {
   cv::Mat stored_image;
 };
 
-// Crop + resize + extract for one decoded image (no I/O). With
+// Crop + resize + extract for one decoded image (no I/O), then the feature
+// budget (stored_features) when it is spread alone (track_neighbours 0; see
+// KeepTrackedOnline below for a budget ranked by tracks). With
 // options.features.whole_image.enabled, features.whole_image is the whole
 // image's descriptor (ComputeWholeImageDescriptor of `image`: before crop
 // and resize), also for a cropped keyframe.
 ProcessedFrame ProcessFrame(const Frame& frame, const cv::Mat& image, const BuildOptions& options,
                             const FeatureExtractor& extractor);
+
+// ProcessFrame keeps every feature when the budget is ranked by tracks
+// (options.stored_features and track_neighbours both above 0): the build
+// ranks them once every frame is extracted, and a keyframe added to an
+// existing database (online mapping) is ranked here, against the stored
+// features of its track_neighbours neighbours in `db`
+// (TrackNeighboursOfNew), before it keeps its budget. Otherwise nothing
+// to do.
+void KeepTrackedOnline(const Database& db, const BuildOptions& options, ProcessedFrame* frame);
 
 // JSON of the settings a database was built with (stored in the manifest,
 // "settings"), and the settings read back from a manifest: every field is

@@ -18,6 +18,7 @@
 #include <string>
 #include <thread>
 
+#include "placedb/builder/tracks.h"
 #include "placedb/dataset/image_folder.h"
 #include "placedb/feature/whole_image.h"
 #include "placedb/util/file_io.h"
@@ -519,16 +520,78 @@ TEST(BuilderTest, StoredFeaturesKeepASubsetOfEachKeyframes) {
     }
     EXPECT_EQ(bitten, full.size()) << tag;  // the budget was smaller than each keyframe's features
     EXPECT_EQ(BuildOptionsFromManifest(kept.info(), "db").stored_features, 20);
-    // A manifest written before the setting reads as keeping every feature.
+    EXPECT_EQ(BuildOptionsFromManifest(kept.info(), "db").track_neighbours, 4);
+    // A manifest written before the setting reads as keeping every feature,
+    // one written before tracked budgets as spread alone.
     nlohmann::json old = kept.info();
     old["settings"].erase("stored_features");
+    old["settings"].erase("track_neighbours");
     EXPECT_EQ(BuildOptionsFromManifest(old, "db").stored_features, 0);
+    EXPECT_EQ(BuildOptionsFromManifest(old, "db").track_neighbours, 0);
   }
   BuildOptions bad = SmallBuild();
   bad.stored_features = -1;
   EXPECT_NE(bad.Check(), "");
   bad.stored_features = 100001;
   EXPECT_NE(bad.Check(), "");
+  bad = SmallBuild();
+  bad.track_neighbours = -1;
+  EXPECT_NE(bad.Check(), "");
+  bad.track_neighbours = 33;
+  EXPECT_NE(bad.Check(), "");
+}
+
+// A budget ranked by tracks keeps more of the features the neighbouring
+// keyframes also found than one spread alone, and the same count; a
+// keyframe added online keeps its budget, ranked against the stored
+// keyframes nearest in order.
+TEST(BuilderTest, TrackedBudgetKeepsTheFeaturesNeighboursFound) {
+  TempDir tmp;
+  const std::vector<Frame> frames = ListImageFolder(kImages, 3, 8);
+  BuildOptions all = SmallBuild();
+  BuildOptions spread = all;
+  spread.stored_features = 30;
+  spread.track_neighbours = 0;
+  BuildOptions tracked = spread;
+  tracked.track_neighbours = 2;
+  BuildDatabase(frames, all, tmp.Path("all"), "rtabmap 3..8");
+  BuildDatabase(frames, spread, tmp.Path("spread"), "rtabmap 3..8");
+  BuildDatabase(frames, tracked, tmp.Path("tracked"), "rtabmap 3..8");
+  const Database full = Database::Load(tmp.Path("all"));
+  const Database a = Database::Load(tmp.Path("spread"));
+  const Database b = Database::Load(tmp.Path("tracked"));
+  ASSERT_EQ(full.size(), frames.size());
+  std::vector<FeatureSet> sets;
+  for (size_t i = 0; i < full.size(); ++i) sets.push_back(full.Features(i));
+  std::vector<std::optional<Pose>> no_poses(full.size());
+  const std::vector<std::vector<size_t>> neighbours = TrackNeighbours(no_poses, 2);
+  int tracked_a = 0, tracked_b = 0;
+  for (size_t i = 0; i < full.size(); ++i) {
+    ASSERT_EQ(a.FeatureCount(i), b.FeatureCount(i)) << i;
+    std::vector<const FeatureSet*> others;
+    for (const size_t j : neighbours[i]) others.push_back(&sets[j]);
+    for (const int c : TrackCounts(a.Features(i), others)) tracked_a += c > 0;
+    for (const int c : TrackCounts(b.Features(i), others)) tracked_b += c > 0;
+  }
+  EXPECT_GT(tracked_b, tracked_a + static_cast<int>(full.size()));
+
+  // Online: the next frame, ranked against the last two stored keyframes.
+  const std::vector<Frame> next = ListImageFolder(kImages, 9, 9);
+  ASSERT_EQ(next.size(), 1u);
+  ProcessedFrame online = ProcessFrame(next[0], LoadFrameImage(next[0]), tracked,
+                                       *FeatureExtractor::Create(tracked.features));
+  const size_t extracted = online.features.size();
+  ASSERT_GT(extracted, 30u);
+  FeatureSet whole = online.features;
+  KeepTrackedOnline(b, tracked, &online);
+  EXPECT_EQ(online.features.size(), 30u);
+  std::vector<FeatureSet> last = {b.Features(b.size() - 1), b.Features(b.size() - 2)};
+  const std::vector<int> counts = TrackCounts(whole, {&last[0], &last[1]});
+  int matched = 0;
+  for (const int c : counts) matched += c > 0;
+  int kept_matched = 0;
+  for (const int c : TrackCounts(online.features, {&last[0], &last[1]})) kept_matched += c > 0;
+  EXPECT_EQ(kept_matched, std::min(matched, 30));
 }
 
 TEST(BuilderTest, ExistingDatabaseNeedsOverwrite) {

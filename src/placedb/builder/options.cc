@@ -14,9 +14,15 @@ const OptionTable<BuildOptions>& BuildOptions::Table() {
     using O = BuildOptions;
     OptionTable<O> t("build settings");
     t.Nest(PLACEDB_MEMBER(O, features), ExtractorOptions::Table());
-    t.Number("stored_features", PLACEDB_MEMBER(O, stored_features), OptionRange::Closed(0, 100000),
-             "most features a keyframe keeps, spread over its image (0: all; queries keep all)")
+    t.Number(
+         "stored_features", PLACEDB_MEMBER(O, stored_features), OptionRange::Closed(0, 100000),
+         "most features a keyframe keeps, those tracked first (track_neighbours), spread over its "
+         "image (0: all; queries keep all)")
         .absent = int64_t{0};  // manifests written before the budget
+    t.Number("track_neighbours", PLACEDB_MEMBER(O, track_neighbours), OptionRange::Closed(0, 32),
+             "stored_features: first the features matched in this many nearest keyframes (by "
+             "position when every frame has a pose, else in order), then spread (0: spread alone)")
+        .absent = int64_t{0};  // manifests written before tracked budgets
     t.Choice("crop", PLACEDB_MEMBER(O, crop), {CropMode::kNone, CropMode::kChroma}, ParseCropMode,
              CropModeName, "none, or chroma: the paper's feature-rich crop");
     t.Nest(PLACEDB_MEMBER(O, crop_options), CropOptions::Table());

@@ -6,6 +6,7 @@
 
 #include <cstddef>
 #include <opencv2/core/types.hpp>
+#include <vector>
 
 #include "placedb/feature/types.h"
 
@@ -22,6 +23,11 @@ constexpr int kSpreadRows = 6;
 // then the earlier. The kept features stay in their order, keypoints and
 // descriptor rows together. Positions outside the image count in its
 // nearest cell. Deterministic: the same features give the same subset.
-void KeepSpread(FeatureSet* features, size_t max_features, cv::Size image_size);
+// With `priority` (one value per feature, or empty: all equal), a feature
+// of a higher priority comes before every feature of a lower one, and the
+// rounds above run within each priority (builder/tracks.h: the features
+// matched in more neighbouring keyframes first).
+void KeepSpread(FeatureSet* features, size_t max_features, cv::Size image_size,
+                const std::vector<int>& priority = {});
 
 }  // namespace placedb

@@ -67,10 +67,30 @@ TEST(KeepSpreadTest, EqualResponsesKeepTheEarlierAndOutsidePointsCount) {
   EXPECT_EQ(Rows(g), (std::vector<int>{1, 2}));
 }
 
+TEST(KeepSpreadTest, AHigherPriorityComesFirstAndSpreadsWithinItself) {
+  // The same five as above. Priority 2 for the top-left's two weaker and the
+  // bottom-right, 1 for the centre, 0 for the strongest.
+  const std::vector<cv::Point2f> points = {{5, 5}, {10, 10}, {300, 230}, {20, 20}, {170, 130}};
+  const std::vector<float> responses = {9.0f, 8.0f, 1.0f, 7.0f, 5.0f};
+  FeatureSet f = Features(points, responses);
+  KeepSpread(&f, 2, {320, 240}, {0, 2, 2, 2, 1});
+  // Within priority 2: round one is 1 (8, top-left) and 2 (bottom-right).
+  EXPECT_EQ(Rows(f), (std::vector<int>{1, 2}));
+  FeatureSet g = Features(points, responses);
+  KeepSpread(&g, 4, {320, 240}, {0, 2, 2, 2, 1});  // then 3, then priority 1
+  EXPECT_EQ(Rows(g), (std::vector<int>{1, 2, 3, 4}));
+  // Equal priorities are spread alone.
+  FeatureSet h = Features(points, responses);
+  KeepSpread(&h, 3, {320, 240}, {5, 5, 5, 5, 5});
+  EXPECT_EQ(Rows(h), (std::vector<int>{0, 2, 4}));
+}
+
 TEST(KeepSpreadTest, MismatchedDescriptorsAreAnInternalError) {
   FeatureSet f = Features({{5, 5}, {10, 10}}, {1, 2});
   f.descriptors = f.descriptors.rowRange(0, 1).clone();
   EXPECT_THROW(KeepSpread(&f, 1, {320, 240}), InternalError);
+  FeatureSet g = Features({{5, 5}, {10, 10}}, {1, 2});
+  EXPECT_THROW(KeepSpread(&g, 1, {320, 240}, {1}), InternalError);
 }
 
 }  // namespace

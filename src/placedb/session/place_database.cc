@@ -833,6 +833,7 @@ void PlaceDatabase::Add(const Frame& frame, const cv::Mat& image, uint64_t sourc
   Impl& m = *impl_;
   std::lock_guard<std::mutex> writer(m.writer);
   if (m.db.IndexOfId(frame.id) >= 0) PLACEDB_THROW_INVALID("keyframe id ", frame.id, " is taken");
+  KeepTrackedOnline(m.db, m.build, &processed);
   BeginChange();
   std::string written;
   if (m.build.store_images) {
