@@ -1,7 +1,6 @@
 #include "placedb/builder/tracks.h"
 
 #include <algorithm>
-#include <limits>
 #include <numeric>
 #include <utility>
 
@@ -49,15 +48,18 @@ std::vector<std::vector<size_t>> NearestByPosition(const std::vector<Eigen::Vect
   return out;
 }
 
+bool AllPosed(const std::vector<std::optional<Pose>>& poses) {
+  return std::all_of(poses.begin(), poses.end(),
+                     [](const std::optional<Pose>& p) { return p.has_value(); });
+}
+
 }  // namespace
 
 std::vector<std::vector<size_t>> TrackNeighbours(const std::vector<std::optional<Pose>>& poses,
                                                  size_t count) {
   const size_t n = poses.size();
   count = std::min(count, n == 0 ? 0 : n - 1);
-  const bool posed = std::all_of(poses.begin(), poses.end(),
-                                 [](const std::optional<Pose>& p) { return p.has_value(); });
-  if (posed && count > 0) {
+  if (AllPosed(poses) && count > 0) {
     std::vector<Eigen::Vector3d> at(n);
     for (size_t i = 0; i < n; ++i) at[i] = poses[i]->translation;
     return NearestByPosition(at, count);
@@ -76,11 +78,8 @@ std::vector<size_t> TrackNeighboursOfNew(const std::vector<std::optional<Pose>>&
                                          const std::optional<Pose>& pose, size_t count) {
   const size_t n = poses.size();
   count = std::min(count, n);
-  const bool posed =
-      pose && std::all_of(poses.begin(), poses.end(),
-                          [](const std::optional<Pose>& p) { return p.has_value(); });
   std::vector<size_t> out;
-  if (!posed) {
+  if (!pose || !AllPosed(poses)) {
     for (size_t i = n; i-- > n - count;) out.push_back(i);
     return out;
   }
