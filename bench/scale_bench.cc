@@ -49,9 +49,11 @@
 // At each of --compare-stored-at keyframes the bench also builds databases
 // that keep fewer features per keyframe (--compare-stored: BuildOptions::
 // stored_features, those matched in the --track-neighbours nearest
-// keyframes first, spread over the image; queries keep all) and runs bow on
-// them with the same queries: what disk and memory they save against the
-// recall they lose.
+// keyframes first, spread over the image; queries keep all) and runs bow,
+// with and without the whole-image channel, on them with the same queries,
+// and at the largest size the default options' memory run (the same
+// --memory-queries queries as the whole map's): what disk and memory they
+// save against the recall they lose.
 //
 // Databases are written under --out (scale_<n>/, scale_<n>_stored<b>/) and
 // reused when their manifest shows the same settings, source description
@@ -587,7 +589,7 @@ int main(int argc, char** argv) {
   int guided_candidates = placedb::RetrievalOptions().guided_candidates;
   std::vector<int> compare_guided = {0, 10};
   double deadline_ms = 2.0, cluster_radius = 0.5, whole_image_weight = 50.0;
-  int whole_image_candidates = 2, memory_queries = 10000, partitions = 4;
+  int whole_image_candidates = 0, memory_queries = 10000, partitions = 4;
   int resident_limit_mb = 768, stored_features = 0;
   int track_neighbours = placedb::BuildOptions().track_neighbours;
   std::vector<int> compare_stored = {210};
@@ -834,7 +836,14 @@ int main(int argc, char** argv) {
       for (const std::string& m : config_modes) {
         runs.push_back(RunMode(db, queries, m == "exhaustive" ? subset : all, m, 0.0, num_sources,
                                bow_candidates, guided_candidates));
-        if (!config.main) continue;
+        if (!config.main) {
+          // A budget: bow, and bow with the whole-image channel (what the
+          // budget loses in fine discrimination, the thumbnail may give back).
+          if (m == "bow" && whole_image_weight > 0)
+            runs.push_back(RunMode(db, queries, all, m, 0.0, num_sources, bow_candidates,
+                                   guided_candidates, whole_image_weight, whole_image_candidates));
+          continue;
+        }
         if (m == "bow") {
           // The same with other numbers matched in full after guided
           // ranking (0: none, every bow candidate matched in full).
@@ -862,7 +871,10 @@ int main(int argc, char** argv) {
       // above read every page of the first one), bow queries on fresh views
       // spread over the database, and the memory that session added.
       nlohmann::json memory_runs = nlohmann::json::array();
-      if (memory_queries > 0 && config.main && n == largest &&
+      // A budget's database at that size gets the default options' run
+      // alone: the same queries as the whole map's, so their recall compares
+      // over --memory-queries queries rather than the table's few.
+      if (memory_queries > 0 && n == largest &&
           std::find(modes.begin(), modes.end(), "bow") != modes.end()) {
         // In a process of its own (forked: it starts with none of this
         // process's mapped pages resident), as a robot's would be: the
@@ -873,9 +885,15 @@ int main(int argc, char** argv) {
         struct MemoryConfig {
           int limit;
           bool mapped;
+          double whole_image_weight;
         };
-        std::vector<MemoryConfig> configs = {{0, false}, {0, true}};
-        if (resident_limit_mb > 0) configs.push_back({resident_limit_mb, true});
+        std::vector<MemoryConfig> configs = {{0, false, 0.0}, {0, true, 0.0}};
+        if (!config.main) {
+          // A budget: the default options, without and with whole-image scoring.
+          configs.resize(1);
+          if (whole_image_weight > 0) configs.push_back({0, false, whole_image_weight});
+        }
+        if (config.main && resident_limit_mb > 0) configs.push_back({resident_limit_mb, true, 0.0});
         for (const MemoryConfig& mc : configs)
           memory_runs.push_back(InChildProcess([&] {
             const int limit = mc.limit;
@@ -889,11 +907,13 @@ int main(int argc, char** argv) {
             options.retrieval.method = placedb::RetrievalMethod::kBow;
             options.retrieval.bow_candidates = bow_candidates;
             options.retrieval.guided_candidates = guided_candidates;
+            options.whole_image_weight = mc.whole_image_weight;
+            options.whole_image_candidates = mc.whole_image_weight > 0 ? whole_image_candidates : 0;
             placedb::AugmentOptions more = query_aug;
             more.seed = kQuerySeed + 1;
             std::vector<double> ms;
             FaultCount faults;
-            int correct = 0;
+            int correct = 0, correct_place = 0;
             double extract_s = 0.0;
             for (int i = 0; i < memory_queries; ++i) {
               const int truth = static_cast<int>(1 + (2 * static_cast<size_t>(i) + 1) * n /
@@ -907,7 +927,9 @@ int main(int argc, char** argv) {
               const placedb::QueryResult r = session.Query(f, options);
               ms.push_back(t.ElapsedMs());
               faults.Add(MajorFaults() - faults_before, ms.back());
-              correct += !r.ranked.empty() && r.ranked.front().keyframe_id == truth;
+              const int best = r.ranked.empty() ? 0 : r.ranked.front().keyframe_id;
+              correct += best == truth;
+              correct_place += best > 0 && (best - 1) % num_sources == (truth - 1) % num_sources;
               if ((i + 1) % 1000 == 0) {
                 const Resident now = ResidentNow();
                 fmt::print(
@@ -926,25 +948,32 @@ int main(int argc, char** argv) {
             }
             const LatencyStats s = placedb::ComputeLatencyStats(ms);
             fmt::print(
-                "  a new process and session (resident limit {} MiB{}), {} bow queries: "
+                "  a new process and session (resident limit {} MiB{}), {} bow queries{}: "
                 "resident +{:.0f} MiB private, +{:.0f} "
                 "MiB file-backed over the process before its open (the process: {:.0f} + {:.0f} "
-                "MiB); p50 {:.2f} ms p99 {:.2f} ms recall@1 {:.3f}; {}\n",
+                "MiB); p50 {:.2f} ms p99 {:.2f} ms recall@1 {:.3f} place {:.3f}; {}\n",
                 limit, session.reads_features() ? ", features read" : ", features mapped",
-                memory_queries, after.anon - before_session.anon, after.file - before_session.file,
-                after.anon, after.file, s.p50, s.p99, static_cast<double>(correct) / memory_queries,
-                faults.Text());
+                memory_queries,
+                mc.whole_image_weight > 0
+                    ? fmt::format(" + whole image (weight {:g})", mc.whole_image_weight)
+                    : std::string(),
+                after.anon - before_session.anon, after.file - before_session.file, after.anon,
+                after.file, s.p50, s.p99, static_cast<double>(correct) / memory_queries,
+                static_cast<double>(correct_place) / memory_queries, faults.Text());
             return nlohmann::json{
                 {"queries", memory_queries},
                 {"resident_limit_mb", limit},
                 {"read_features", session.reads_features()},
                 {"default_options", !mc.mapped},
+                {"whole_image_weight", mc.whole_image_weight},
+                {"whole_image_candidates", options.whole_image_candidates},
                 {"resident_increase", ResidentJson({after.anon - before_session.anon,
                                                     after.file - before_session.file})},
                 {"latency_ms", StatsJson(s)},
                 {"resident_by_file_mib", by_file},
                 {"process_resident", ResidentJson(after)},
                 {"recall_at_1", static_cast<double>(correct) / memory_queries},
+                {"place_recall_at_1", static_cast<double>(correct_place) / memory_queries},
                 {"faults", faults.Json()},
                 {"extract_seconds", extract_s}};
           }));

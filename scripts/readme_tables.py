@@ -141,6 +141,13 @@ def SizeLabel(s):
     return f"{s['keyframes']}, {stored} stored" if stored > 0 else f"{s['keyframes']}"
 
 
+def WithoutTheChannel(modes, m):
+    """The runs of `modes` that are run m without the whole-image channel (same mode and guided count, no deadline)."""
+    return [b for b in modes if b["mode"] == m["mode"] and b["deadline_ms"] == 0
+            and b.get("guided_candidates", 0) == m.get("guided_candidates", 0)
+            and b.get("whole_image_weight", 0) == 0]
+
+
 def scale_table(j):
     rows = ["| keyframes | search | queries | p50 ms | p99 ms | recall@1 | place recall@1 | keyframes examined | "
             "vs exhaustive |", "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
@@ -156,7 +163,8 @@ def scale_table(j):
             whole = m.get("whole_image_weight", 0) > 0
             if whole:
                 name += f" + whole image (weight {m['whole_image_weight']:g}"
-                name += f", {m['whole_image_candidates']} candidates)" if m["mode"] != "exhaustive" else ")"
+                name += (f", {m['whole_image_candidates']} candidates)"
+                         if m["mode"] != "exhaustive" and m['whole_image_candidates'] > 0 else ")")
             if "vs_popcount_limit" in m:
                 vs = f"{m['vs_popcount_limit']:.2f}× the popcount limit"
             elif "recall_points_vs_exhaustive" in m:
@@ -177,9 +185,7 @@ def scale_table(j):
                     vs += f" (one candidate's match + verify: {(st['match'] + st['verify']) / full[0]['examined_mean']:.2f} ms)"
             if whole:
                 # What the channel adds: the same mode without it, same size.
-                plain = [b for b in s["modes"] if b["mode"] == m["mode"] and b["deadline_ms"] == 0
-                         and b.get("guided_candidates", 0) == m.get("guided_candidates", 0)
-                         and b.get("whole_image_weight", 0) == 0]
+                plain = WithoutTheChannel(s["modes"], m)
                 if plain:
                     b = plain[0]
                     vs += (f"; vs {m['mode']} without it: recall@1 "
@@ -198,6 +204,16 @@ def scale_table(j):
                     vs += (f"; vs every feature: recall@1 {100 * (m['recall_at_1'] - b['recall_at_1']):+.1f}, "
                            f"place {100 * (m['place_recall_at_1'] - b['place_recall_at_1']):+.1f} points, "
                            f"p99 {m['latency_ms']['p99'] - b['latency_ms']['p99']:+.2f} ms")
+                if whole:
+                    # Against every feature without the channel: the default options' answers.
+                    plain = WithoutTheChannel([b for t in j["sizes"] if t["keyframes"] == s["keyframes"]
+                                               and t.get("stored_features", 0) == j.get("stored_features", 0)
+                                               for b in t["modes"]], m)
+                    if plain:
+                        b = plain[0]
+                        vs += (f"; vs every feature without it: recall@1 "
+                               f"{100 * (m['recall_at_1'] - b['recall_at_1']):+.1f}, place "
+                               f"{100 * (m['place_recall_at_1'] - b['place_recall_at_1']):+.1f} points")
             if m.get("faults", {}).get("major_faults", 0) > 0:
                 vs += FaultText(m)
             vs = vs.lstrip("; ")
@@ -223,10 +239,10 @@ def scale_table(j):
                     f"{s['build_seconds']:.0f} | {s['database_bytes'] / 1e6:.1f} | {s['open_ms']:.1f}{first} | "
                     f"{after_open} | {after_runs} | {verify} | {s['popcount_limit_ms']:.2f} |")
         for m in s.get("memory_runs", []):
-            memory_runs.append((s["keyframes"], m))
+            memory_runs.append((s, m))
         if "partition_run" in s:
             partition_runs.append((s["keyframes"], s["partition_run"]))
-    for keyframes, m in memory_runs:
+    for s, m in memory_runs:
         r = m["resident_increase"]
         limit = m.get("resident_limit_mb", 0)
         reads = ("the examined keyframes' features read from the file rather than mapped" if m.get("read_features")
@@ -240,12 +256,32 @@ def scale_table(j):
             limit_text = f"without a resident limit and with {reads}: `read_features_above_mb` 0"
         by_file = m.get("resident_by_file_mib", {})
         files = ", ".join(f"{name.split('.')[0]} {mib:.0f}" for name, mib in sorted(by_file.items()))
-        rows += ["", f"At {keyframes} keyframes, a process of its own opened a session ({limit_text}) and asked "
-                 f"{m['queries']} bag-of-words queries (fresh views spread over the map): the session added "
+        place = f", place recall@1 {m['place_recall_at_1']:.3f}" if "place_recall_at_1" in m else ""
+        vs = ""
+        if s.get("stored_features", 0) > 0:
+            # The same queries on the same keyframes keeping every feature, the same options.
+            # (A run with the whole-image channel is compared with every feature's without it.)
+            whole = [w for t in j["sizes"] if t["keyframes"] == s["keyframes"]
+                     and t.get("stored_features", 0) == j.get("stored_features", 0)
+                     for w in t.get("memory_runs", []) if w["default_options"] == m["default_options"]
+                     and w.get("resident_limit_mb", 0) == m.get("resident_limit_mb", 0)
+                     and w.get("whole_image_weight", 0) == 0]
+            if whole and "place_recall_at_1" in whole[0] and "place_recall_at_1" in m:
+                w = whole[0]
+                vs = (f" (every feature{' without the channel' if m.get('whole_image_weight', 0) > 0 else ''}, "
+                      f"the same queries: recall@1 "
+                      f"{100 * (m['recall_at_1'] - w['recall_at_1']):+.1f}, place "
+                      f"{100 * (m['place_recall_at_1'] - w['place_recall_at_1']):+.1f} points, p99 "
+                      f"{m['latency_ms']['p99'] - w['latency_ms']['p99']:+.2f} ms)")
+        rows += ["", f"At {SizeLabel(s)} keyframes, a process of its own opened a session ({limit_text}) and asked "
+                 f"{m['queries']} bag-of-words queries"
+                 + (f" with whole-image scoring (weight {m['whole_image_weight']:g})"
+                    if m.get("whole_image_weight", 0) > 0 else "") +
+                 " (fresh views spread over the map): the session added "
                  f"**{r['private_mib']:.0f} MiB private + {r['file_mib']:.0f} MiB file-backed** resident memory"
                  + (f" (mapped and resident at the end, MiB: {files})" if files else "") +
                  f"; their latency p50 {m['latency_ms']['p50']:.2f} ms, p99 {m['latency_ms']['p99']:.2f} ms, "
-                 f"recall@1 {m['recall_at_1']:.3f}" + FaultText(m) + "."]
+                 f"recall@1 {m['recall_at_1']:.3f}{place}{vs}" + FaultText(m) + "."]
     for keyframes, p in partition_runs:
         w = p["workers"]
         files = max(x["file_mib"] for x in w)
@@ -284,7 +320,7 @@ def scale_table(j):
                   "spread over the image" if track > 0 else "the strongest spread over the image")
         note += (" \"N stored\": a database of the same keyframes keeping at most N features per keyframe "
                  f"(`stored_features`: {ranked}), with the same queries, which keep "
-                 "all their features; bow runs only.")
+                 "all their features; bow runs only (with and without the whole-image channel).")
     return "\n".join(rows) + "\n\n" + note
 
 

@@ -100,13 +100,21 @@ struct Examined {
   double key = 0.0;                   // matches + the whole-image bonus (order.h)
 };
 
-// The whole-image similarity of every keyframe (by index) to the query; empty
-// without the channel.
+// The whole-image similarity to the query of every keyframe (`similarity`,
+// by index), or of the examined ones alone (`rows` ascending, `values`):
+// what a search needs when the channel adds no candidates, without the scan
+// of every thumbnail (77 MB at 100 000 keyframes). Empty without the
+// channel.
 struct WholeImageScores {
   std::vector<float> similarity;
+  std::vector<uint32_t> rows;
+  std::vector<float> values;
+  bool empty() const { return similarity.empty() && rows.empty(); }
   std::optional<double> Of(uint32_t index) const {
-    if (similarity.empty()) return std::nullopt;
-    return static_cast<double>(similarity[index]);
+    if (!similarity.empty()) return static_cast<double>(similarity[index]);
+    const auto it = std::lower_bound(rows.begin(), rows.end(), index);
+    if (it == rows.end() || *it != index) return std::nullopt;
+    return static_cast<double>(values[static_cast<size_t>(it - rows.begin())]);
   }
 };
 
@@ -371,20 +379,33 @@ Examination ExamineTimed(const Database& db, const GroupedFeatures& grouped,
   return out;
 }
 
-// The whole-image channel: every keyframe's similarity to the query, when
+// The whole-image channel: the keyframes' similarity to the query, when
 // the database has the channel and the query a descriptor of its size (a
-// query from an image; features from elsewhere carry none).
+// query from an image; features from elsewhere carry none). Every
+// keyframe's when the channel adds candidates to a search that is not
+// exhaustive; else those of `candidates` (nullptr: every keyframe's), the
+// only ones a search examines.
 WholeImageScores ScoreWholeImages(const Database& db, const FeatureSet& query,
-                                  const QueryOptions& options, bool exhaustive) {
+                                  const QueryOptions& options, bool exhaustive,
+                                  const std::vector<Candidate>* candidates) {
   WholeImageScores s;
   const int dims = db.whole_image_dims();
   if (dims <= 0 || query.whole_image.empty() || db.size() == 0) return s;
-  // Needed to score, or to add candidates to a search that is not exhaustive.
-  if (options.whole_image_weight <= 0.0 && (exhaustive || options.whole_image_candidates <= 0))
+  const bool adds = !exhaustive && options.whole_image_candidates > 0;
+  // Needed to score, or to add candidates.
+  if (options.whole_image_weight <= 0.0 && !adds) return s;
+  const int8_t* q = query.whole_image.ptr<int8_t>();
+  if (!adds && candidates != nullptr && candidates->size() < db.size()) {
+    for (const Candidate& c : *candidates) s.rows.push_back(c.index);
+    std::sort(s.rows.begin(), s.rows.end());
+    s.rows.erase(std::unique(s.rows.begin(), s.rows.end()), s.rows.end());
+    s.values.resize(s.rows.size());
+    for (size_t i = 0; i < s.rows.size(); ++i)
+      WholeImageSimilarities(q, db.WholeImage(s.rows[i]), 1, dims, &s.values[i]);
     return s;
+  }
   s.similarity.resize(db.size());
-  WholeImageSimilarities(query.whole_image.ptr<int8_t>(), db.WholeImageData(), db.size(), dims,
-                         s.similarity.data());
+  WholeImageSimilarities(q, db.WholeImageData(), db.size(), dims, s.similarity.data());
   return s;
 }
 
@@ -471,7 +492,7 @@ QueryResult RunStages(const Database& db, const FeatureSet& query, const QueryOp
   std::vector<Candidate> candidates =
       retriever.Retrieve(db, query, among, excluded, retrieve_deadline, &retrieve_stopped);
   const bool exhaustive = retriever.method() == RetrievalMethod::kExhaustive;
-  const WholeImageScores whole = ScoreWholeImages(db, query, options, exhaustive);
+  const WholeImageScores whole = ScoreWholeImages(db, query, options, exhaustive, &candidates);
   if (!whole.similarity.empty() && !exhaustive)
     AddWholeImageCandidates(whole, options, among, excluded, &candidates);
   result.times.retrieve_ms = stage.ElapsedMs();
@@ -660,7 +681,10 @@ Shortlist ShortlistDatabase(const Database& db, const FeatureSet& query,
                          excluded, deadline, &out.deadline_reached, /*count_always=*/true);
   for (const BowCandidate& c : scored)
     out.bow.push_back({c.index, db.keyframe(c.index).id, c.score, c.guided});
-  const WholeImageScores whole = ScoreWholeImages(db, query, options, false);
+  // The thumbnails are scanned only to name whole-image candidates.
+  const WholeImageScores whole = options.whole_image_candidates > 0
+                                     ? ScoreWholeImages(db, query, options, false, nullptr)
+                                     : WholeImageScores();
   if (!whole.similarity.empty()) {
     for (const uint32_t i : MostSimilarWholeImages(
              whole, static_cast<size_t>(options.whole_image_candidates), restriction, excluded))

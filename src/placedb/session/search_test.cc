@@ -151,6 +151,39 @@ TEST_F(SearchTest, WholeImageCandidatesJoinBagOfWords) {
             db.Query(Features(id), exhaustive_with).ranked);
 }
 
+// Whole-image scoring without whole-image candidates computes the
+// similarity of the examined keyframes alone (no scan of every thumbnail):
+// each ranked keyframe's is the brute-force one and its score follows the
+// rule (PartitionedBowIsExactInTwoRounds: the answers equal the merged
+// partitions', whose parts compute them the same way).
+TEST_F(SearchTest, WholeImageScoringAloneScoresTheExamined) {
+  const PlaceDatabase db = PlaceDatabase::Open(Dir());
+  QueryOptions bow;
+  bow.retrieval.method = RetrievalMethod::kBow;
+  bow.retrieval.bow_candidates = 8;
+  bow.retrieval.guided_candidates = 0;
+  bow.whole_image_weight = 5.0;
+  bow.top_k = 40;
+  bow.verify.num_candidates = 40;
+  const StorageView view(db);
+  const Database& d = view.database();
+  int compared = 0;
+  for (int id = 41; id <= 84; id += 3) {
+    const cv::Mat& q = Features(id).whole_image;
+    const QueryResult r = db.Query(Features(id), bow);
+    EXPECT_EQ(r.num_examined, 8);
+    for (const RankedKeyframe& k : r.ranked) {
+      ASSERT_TRUE(k.whole_image.has_value()) << "query " << id;
+      const double s = WholeImageSimilarity(q.ptr<int8_t>(), d.WholeImage(k.keyframe_id - 1),
+                                            d.whole_image_dims());
+      EXPECT_NEAR(*k.whole_image, s, 1e-5);
+      EXPECT_DOUBLE_EQ(k.score, k.num_inliers + 5.0 * std::max(0.0, *k.whole_image));
+      ++compared;
+    }
+  }
+  EXPECT_GT(compared, 15);
+}
+
 // Scoring a few keyframes one by one gives the inverted file's scores.
 TEST_F(SearchTest, ScoringEachKeyframeEqualsTheInvertedFile) {
   const PlaceDatabase db = PlaceDatabase::Open(Dir());
@@ -384,14 +417,15 @@ TEST_F(SearchTest, PartitionedBowIsExactInTwoRounds) {
           if (InPartition(i, all.size(), p, num_parts, scheme)) ids[p].push_back(all[i]);
         }
       }
-      for (const bool whole_image : {false, true}) {
+      // The channel off, scoring with candidates, scoring alone.
+      for (const int whole_image : {0, 2, 1}) {
         QueryOptions bow;
         bow.retrieval.method = RetrievalMethod::kBow;
         bow.retrieval.bow_candidates = 8;
         bow.retrieval.guided_candidates = 3;
-        if (whole_image) {
+        if (whole_image > 0) {
           bow.whole_image_weight = 5.0;
-          bow.whole_image_candidates = 2;
+          bow.whole_image_candidates = whole_image == 2 ? 2 : 0;
         }
         QueryOptions share = bow.ForPartition();
         share.retrieval.method = RetrievalMethod::kExhaustive;
