@@ -109,7 +109,6 @@ struct WholeImageScores {
   std::vector<float> similarity;
   std::vector<uint32_t> rows;
   std::vector<float> values;
-  bool empty() const { return similarity.empty() && rows.empty(); }
   std::optional<double> Of(uint32_t index) const {
     if (!similarity.empty()) return static_cast<double>(similarity[index]);
     const auto it = std::lower_bound(rows.begin(), rows.end(), index);
