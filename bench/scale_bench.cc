@@ -588,7 +588,7 @@ int main(int argc, char** argv) {
   int fast_threshold = 5, bow_candidates = placedb::RetrievalOptions().bow_candidates;
   int guided_candidates = placedb::RetrievalOptions().guided_candidates;
   std::vector<int> compare_guided = {0, 10};
-  double deadline_ms = 2.0, cluster_radius = 0.5, whole_image_weight = 50.0;
+  double deadline_ms = 2.0, cluster_radius = 0.5, whole_image_weight = 150.0;
   int whole_image_candidates = 0, memory_queries = 10000, partitions = 4;
   int resident_limit_mb = 768, stored_features = 0;
   int track_neighbours = placedb::BuildOptions().track_neighbours;
@@ -642,7 +642,8 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0, 64))
       ->capture_default_str();
   app.add_option("--resident-limit-mb", resident_limit_mb,
-                 "the memory runs are made with the default options, with the features mapped "
+                 "the memory runs are made with the default options (also with whole-image scoring "
+                 "at --whole-image-weight), with the features mapped "
                  "(OpenOptions::read_features_above_mb 0), and mapped with this "
                  "OpenOptions::resident_limit_mb (0: not)")
       ->check(CLI::Range(0, 1048576))
@@ -703,25 +704,27 @@ int main(int argc, char** argv) {
         "{} sample images; {} CPUs; Hamming kernel {}: {:.3f} ns per distance at best "
         "(in cache)\n",
         sources.size(), cpus, placedb::HammingKernelName(), ns);
-    nlohmann::json results = {{"cpus", cpus},
-                              {"sample_images", sources.size()},
-                              {"features_per_frame", features},
-                              {"fast_threshold", fast_threshold},
-                              {"stored_features", stored_features},
-                              {"track_neighbours", track_neighbours},
-                              {"compare_stored", compare_stored},
-                              {"queries", num_queries},
-                              {"exhaustive_queries_above_1000", exhaustive_queries},
-                              {"hamming_kernel", placedb::HammingKernelName()},
-                              {"ns_per_distance", ns},
-                              {"deadline_ms", deadline_ms},
-                              {"bow_candidates", bow_candidates},
-                              {"guided_candidates", guided_candidates},
-                              {"cluster_radius_m", cluster_radius},
-                              {"resident_limit_mb", resident_limit_mb},
-                              {"keyframe_augment", placedb::AugmentOptionsToJson(keyframe_aug)},
-                              {"query_augment", placedb::AugmentOptionsToJson(query_aug)},
-                              {"sizes", nlohmann::json::array()}};
+    nlohmann::json results = {
+        {"cpus", cpus},
+        {"sample_images", sources.size()},
+        {"features_per_frame", features},
+        {"fast_threshold", fast_threshold},
+        {"stored_features", stored_features},
+        {"track_neighbours", track_neighbours},
+        {"compare_stored", compare_stored},
+        {"queries", num_queries},
+        {"exhaustive_queries_above_1000", exhaustive_queries},
+        {"hamming_kernel", placedb::HammingKernelName()},
+        {"ns_per_distance", ns},
+        {"deadline_ms", deadline_ms},
+        {"bow_candidates", bow_candidates},
+        {"guided_candidates", guided_candidates},
+        {"cluster_radius_m", cluster_radius},
+        {"resident_limit_mb", resident_limit_mb},
+        {"read_features_above_mb", placedb::OpenOptions().read_features_above_mb},
+        {"keyframe_augment", placedb::AugmentOptionsToJson(keyframe_aug)},
+        {"query_augment", placedb::AugmentOptionsToJson(query_aug)},
+        {"sizes", nlohmann::json::array()}};
     std::vector<std::string> table;
     // Each size with --stored-features (the main runs), and after the size
     // of --compare-stored-at the same keyframes keeping fewer features (bow runs
@@ -881,18 +884,17 @@ int main(int argc, char** argv) {
         // sessions' resident limit is the process's.
         // The default options (the map's size decides whether the features
         // are read or mapped: OpenOptions::read_features_above_mb), the
-        // features mapped without a limit, and mapped with the limit.
+        // same with whole-image scoring, the features mapped without a
+        // limit, and mapped with the limit.
         struct MemoryConfig {
           int limit;
           bool mapped;
           double whole_image_weight;
         };
-        std::vector<MemoryConfig> configs = {{0, false, 0.0}, {0, true, 0.0}};
-        if (!config.main) {
-          // A budget: the default options, without and with whole-image scoring.
-          configs.resize(1);
-          if (whole_image_weight > 0) configs.push_back({0, false, whole_image_weight});
-        }
+        std::vector<MemoryConfig> configs = {{0, false, 0.0}};
+        if (whole_image_weight > 0) configs.push_back({0, false, whole_image_weight});
+        // A budget: the default options alone, without and with whole-image scoring.
+        if (config.main) configs.push_back({0, true, 0.0});
         if (config.main && resident_limit_mb > 0) configs.push_back({resident_limit_mb, true, 0.0});
         for (const MemoryConfig& mc : configs)
           memory_runs.push_back(InChildProcess([&] {

@@ -261,18 +261,27 @@ def scale_table(j):
         if s.get("stored_features", 0) > 0:
             # The same queries on the same keyframes keeping every feature, the same options.
             # (A run with the whole-image channel is compared with every feature's without it.)
-            whole = [w for t in j["sizes"] if t["keyframes"] == s["keyframes"]
-                     and t.get("stored_features", 0) == j.get("stored_features", 0)
-                     for w in t.get("memory_runs", []) if w["default_options"] == m["default_options"]
-                     and w.get("resident_limit_mb", 0) == m.get("resident_limit_mb", 0)
-                     and w.get("whole_image_weight", 0) == 0]
-            if whole and "place_recall_at_1" in whole[0] and "place_recall_at_1" in m:
-                w = whole[0]
-                vs = (f" (every feature{' without the channel' if m.get('whole_image_weight', 0) > 0 else ''}, "
-                      f"the same queries: recall@1 "
-                      f"{100 * (m['recall_at_1'] - w['recall_at_1']):+.1f}, place "
-                      f"{100 * (m['place_recall_at_1'] - w['place_recall_at_1']):+.1f} points, p99 "
-                      f"{m['latency_ms']['p99'] - w['latency_ms']['p99']:+.2f} ms)")
+            # (A run with the whole-image channel is compared with every feature's without it,
+            # then with it at the same weight.)
+            def EveryFeature(weight):
+                return [w for t in j["sizes"] if t["keyframes"] == s["keyframes"]
+                        and t.get("stored_features", 0) == j.get("stored_features", 0)
+                        for w in t.get("memory_runs", []) if w["default_options"] == m["default_options"]
+                        and w.get("resident_limit_mb", 0) == m.get("resident_limit_mb", 0)
+                        and w.get("whole_image_weight", 0) == weight and "place_recall_at_1" in w]
+            weight = m.get("whole_image_weight", 0)
+            parts = []
+            for w, label in ([(x, "every feature without the channel") for x in EveryFeature(0)[:1]]
+                             + [(x, "every feature with it") for x in EveryFeature(weight)[:1] if weight > 0]
+                             if weight > 0 else [(x, "every feature") for x in EveryFeature(0)[:1]]):
+                if "place_recall_at_1" not in m:
+                    continue
+                parts.append(f"{label}, the same queries: recall@1 "
+                             f"{100 * (m['recall_at_1'] - w['recall_at_1']):+.1f}, place "
+                             f"{100 * (m['place_recall_at_1'] - w['place_recall_at_1']):+.1f} points, p99 "
+                             f"{m['latency_ms']['p99'] - w['latency_ms']['p99']:+.2f} ms")
+            if parts:
+                vs = " (" + "; ".join(parts) + ")"
         rows += ["", f"At {SizeLabel(s)} keyframes, a process of its own opened a session ({limit_text}) and asked "
                  f"{m['queries']} bag-of-words queries"
                  + (f" with whole-image scoring (weight {m['whole_image_weight']:g})"
@@ -313,7 +322,7 @@ def scale_table(j):
     if reading:
         note += (f" At {', '.join(reading)} keyframes the sessions read the examined keyframes' features from the "
                  "file rather than mapping them (the default: the keyframe file is above `read_features_above_mb`, "
-                 "1024 MiB), so exhaustive search there reads every keyframe rather than mapping it.")
+                 f"{j.get('read_features_above_mb', 1024)} MiB), so exhaustive search there reads every keyframe rather than mapping it.")
     if j.get("compare_stored"):
         track = j.get("track_neighbours", 0)
         ranked = (f"those matched in the {track} nearest keyframes first (`track_neighbours`), the strongest "

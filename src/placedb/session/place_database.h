@@ -111,15 +111,17 @@ struct OpenOptions {
   // The same, decided by the map's size: queries read the features when the
   // database's keyframe file is larger than this many MiB, so that a map
   // too large to keep mapped (100 000 keyframes of ~400 ORB features: a
-  // 1.7 GiB keyframe file) does not grow the process by it, while a smaller
-  // one keeps the mapping's speed (reading costs about 0.16 ms a query at
+  // 1.7 GiB keyframe file; of 210: 0.9 GiB) does not grow the process by it
+  // (with the index's pages beside it, a mapped 512 MiB keyframe file keeps
+  // the process under 1 GB), while a smaller one (10 000 keyframes: 170 MiB)
+  // keeps the mapping's speed (reading costs about 0.16 ms a query at
   // 10 000 keyframes here; at 100 000, where a mapped session's queries pay
   // for their first touches of pages instead, it cost +0.03 to +0.13 ms at
   // p50 in two of three runs: README, "Retrieval at scale").
   // reads_features() says what was chosen.
   // Range [0, 1048576]; 0: size never decides (read_features alone does).
-  // Default 1024.
-  int read_features_above_mb = 1024;
+  // Default 512.
+  int read_features_above_mb = 512;
 
   // The options' names, defaults, ranges and help (util/option_table.h).
   static const OptionTable<OpenOptions>& Table();
