@@ -320,7 +320,7 @@ def scale_table(j):
             "database features.")
     reading = [SizeLabel(s) for s in j["sizes"] if s.get("reads_features")]
     if reading:
-        note += (f" At {', '.join(reading)} keyframes the sessions read the examined keyframes' features from the "
+        note += (f" In the rows of {' and of '.join(reading)} keyframes the sessions read the examined keyframes' features from the "
                  "file rather than mapping them (the default: the keyframe file is above `read_features_above_mb`, "
                  f"{j.get('read_features_above_mb', 1024)} MiB), so exhaustive search there reads every keyframe rather than mapping it.")
     if j.get("compare_stored"):
