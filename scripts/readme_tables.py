@@ -260,22 +260,22 @@ def scale_table(j):
         vs = ""
         if s.get("stored_features", 0) > 0:
             # The same queries on the same keyframes keeping every feature, the same options.
-            # (A run with the whole-image channel is compared with every feature's without it.)
-            # (A run with the whole-image channel is compared with every feature's without it,
-            # then with it at the same weight.)
+            # A run with the whole-image channel is compared with every feature's without it,
+            # then with it at the same weight.
             def EveryFeature(weight):
                 return [w for t in j["sizes"] if t["keyframes"] == s["keyframes"]
                         and t.get("stored_features", 0) == j.get("stored_features", 0)
                         for w in t.get("memory_runs", []) if w["default_options"] == m["default_options"]
                         and w.get("resident_limit_mb", 0) == m.get("resident_limit_mb", 0)
-                        and w.get("whole_image_weight", 0) == weight and "place_recall_at_1" in w]
+                        and w.get("whole_image_weight", 0) == weight and "place_recall_at_1" in w][:1]
             weight = m.get("whole_image_weight", 0)
+            if weight > 0:
+                against = ([(w, "every feature without the channel") for w in EveryFeature(0)]
+                           + [(w, "every feature with it") for w in EveryFeature(weight)])
+            else:
+                against = [(w, "every feature") for w in EveryFeature(0)]
             parts = []
-            for w, label in ([(x, "every feature without the channel") for x in EveryFeature(0)[:1]]
-                             + [(x, "every feature with it") for x in EveryFeature(weight)[:1] if weight > 0]
-                             if weight > 0 else [(x, "every feature") for x in EveryFeature(0)[:1]]):
-                if "place_recall_at_1" not in m:
-                    continue
+            for w, label in (against if "place_recall_at_1" in m else []):
                 parts.append(f"{label}, the same queries: recall@1 "
                              f"{100 * (m['recall_at_1'] - w['recall_at_1']):+.1f}, place "
                              f"{100 * (m['place_recall_at_1'] - w['place_recall_at_1']):+.1f} points, p99 "
