@@ -882,10 +882,10 @@ int main(int argc, char** argv) {
         // In a process of its own (forked: it starts with none of this
         // process's mapped pages resident), as a robot's would be: the
         // sessions' resident limit is the process's.
-        // The default options (the map's size decides whether the features
-        // are read or mapped: OpenOptions::read_features_above_mb), the
-        // same with whole-image scoring, the features mapped without a
-        // limit, and mapped with the limit.
+        // Every map: the default options (the map's size decides whether the
+        // features are read or mapped: OpenOptions::read_features_above_mb),
+        // and the same with whole-image scoring. The every-feature map also:
+        // the features mapped without a limit, and mapped with the limit.
         struct MemoryConfig {
           int limit;
           bool mapped;
@@ -893,7 +893,6 @@ int main(int argc, char** argv) {
         };
         std::vector<MemoryConfig> configs = {{0, false, 0.0}};
         if (whole_image_weight > 0) configs.push_back({0, false, whole_image_weight});
-        // A budget: the default options alone, without and with whole-image scoring.
         if (config.main) configs.push_back({0, true, 0.0});
         if (config.main && resident_limit_mb > 0) configs.push_back({resident_limit_mb, true, 0.0});
         for (const MemoryConfig& mc : configs)
