@@ -8,6 +8,7 @@ PACKAGES=(
   g++ cmake make pkg-config
   ninja-build            # the sanitizer trees of make check (CMakePresets.json)
   libopencv-dev          # ORB, FAST, SIFT, BFMatcher, image I/O
+  libpng-dev             # PNG decoding with placedb's own error messages
   libcli11-dev           # command line
   libfmt-dev libspdlog-dev
   nlohmann-json3-dev     # manifests, reports
@@ -29,6 +30,8 @@ PACKAGES=(
   # rostopic and rosbag (the README's ROS section), genpy (placedb_msgs for
   # Python) and the Python messages rostopic decodes ours with.
   ros:python3-rostopic ros:python3-rosbag ros:python3-genpy
+  # The bag reader's compressed chunks (bzip2, ROS's lz4 frames).
+  ros:libbz2-dev ros:libroslz4-dev
   ros:python3-std-msgs ros:python3-geometry-msgs ros:python3-sensor-msgs
 )
 

@@ -20,6 +20,7 @@
 #include "placedb/feature/spread.h"
 #include "placedb/feature/whole_image.h"
 #include "placedb/image/resize.h"
+#include "placedb/storage/folder.h"
 #include "placedb/util/check.h"
 #include "placedb/util/checksum.h"
 #include "placedb/util/file_io.h"
@@ -208,27 +209,6 @@ fs::path NormalizeOutputPath(const std::string& out_dir) {
   return p;
 }
 
-// Removes "<out>.building.<pid>" folders that builds killed before they
-// finished left behind: those whose process is gone.
-void RemoveAbandonedBuilds(const fs::path& out) {
-  std::error_code ec;
-  const std::string prefix = out.filename().string() + ".building.";
-  for (const auto& entry : fs::directory_iterator(out.parent_path(), ec)) {
-    const std::string name = entry.path().filename().string();
-    if (name.compare(0, prefix.size(), prefix) != 0 || !entry.is_directory(ec)) continue;
-    const std::string pid_text = name.substr(prefix.size());
-    if (pid_text.empty() || pid_text.size() > 9 ||
-        !std::all_of(pid_text.begin(), pid_text.end(), ::isdigit)) {
-      continue;
-    }
-    const long pid = std::stol(pid_text);
-    if (pid == ::getpid() || ProcessIsGone(pid)) {
-      spdlog::info("removing {}, left by a build that did not finish", entry.path().string());
-      fs::remove_all(entry.path(), ec);
-    }
-  }
-}
-
 // Moves the finished temporary directory to `out`. With an existing
 // database at `out`, the two directories are exchanged atomically
 // (renameat2 RENAME_EXCHANGE) and the old one is then deleted.
@@ -373,11 +353,19 @@ BuildReport BuildDatabase(const std::vector<Frame>& frames, const BuildOptions& 
   if (frames.empty()) PLACEDB_THROW_INVALID("no frames to build a database from");
   fs::create_directories(out.parent_path(), ec);
   if (ec) PLACEDB_THROW_IO("cannot create ", out.parent_path().string(), ": ", ec.message());
-  RemoveAbandonedBuilds(out);
+  // Folders of killed builds, and one of this process's left by an earlier
+  // call that failed to remove it.
+  RemoveAbandonedBuilds(out.string(), /*include_own=*/true);
   const fs::path tmp = out.string() + ".building." + std::to_string(::getpid());
-  fs::remove_all(tmp, ec);
-  fs::create_directories(tmp / "images", ec);
-  if (ec) PLACEDB_THROW_IO("cannot create ", (tmp / "images").string(), ": ", ec.message());
+  if (fs::exists(fs::symlink_status(tmp, ec))) {
+    PLACEDB_THROW_INVALID(tmp.string(),
+                          " is in the way of the build (a symlink or a file where "
+                          "the build's temporary folder goes); move it away");
+  }
+  fs::create_directories(tmp / kStoredImageFolder, ec);
+  if (ec) {
+    PLACEDB_THROW_IO("cannot create ", (tmp / kStoredImageFolder).string(), ": ", ec.message());
+  }
 
   try {
     const auto extractor = FeatureExtractor::Create(options.features);
@@ -404,8 +392,7 @@ BuildReport BuildDatabase(const std::vector<Frame>& frames, const BuildOptions& 
       if (options.store_images) {
         buffer.clear();
         cv::imencode(".png", processed.stored_image, buffer, png_params);
-        char name[32];
-        std::snprintf(name, sizeof(name), "images/%06d.png", frame.id);
+        const std::string name = StoredImageFileName(frame.id);
         processed.keyframe.image_file = name;
         WriteFileAtomic((tmp / name).string(),
                         std::string(reinterpret_cast<const char*>(buffer.data()), buffer.size()));
@@ -443,7 +430,7 @@ BuildReport BuildDatabase(const std::vector<Frame>& frames, const BuildOptions& 
       PLACEDB_THROW_INVALID("none of the ", frames.size(),
                             " images could be read; no database built");
     }
-    if (!options.store_images) fs::remove_all(tmp / "images", ec);
+    if (!options.store_images) fs::remove_all(tmp / kStoredImageFolder, ec);
 
     nlohmann::json& info = db.info();
     info["settings"] = BuildSettingsToJson(options);

@@ -1,13 +1,14 @@
 #include "placedb/dataset/frame.h"
 
 #include <fcntl.h>
+#include <fmt/format.h>
+#include <png.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include <fmt/format.h>
-
 #include <algorithm>
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -51,8 +52,8 @@ std::optional<ImageHeader> JpegHeader(const uint8_t* d, size_t n, std::string* e
     if (n - i < 2) break;
     const uint32_t length = Be16(d + i);
     if (length < 2 || length > n - i) break;
-    const bool sof = marker >= 0xC0 && marker <= 0xCF && marker != 0xC4 && marker != 0xC8 &&
-                     marker != 0xCC;
+    const bool sof =
+        marker >= 0xC0 && marker <= 0xCF && marker != 0xC4 && marker != 0xC8 && marker != 0xCC;
     if (sof) {
       if (length < 8) break;
       ImageHeader h{"jpeg", Be16(d + i + 5), Be16(d + i + 3)};
@@ -135,7 +136,8 @@ std::optional<ImageHeader> ReadImageHeader(const uint8_t* d, size_t n, std::stri
     } else {
       why = "BMP: the header is cut short or malformed";
     }
-  } else if (n >= 2 && d[0] == 'P' && ((d[1] >= '1' && d[1] <= '6') || d[1] == 'F' || d[1] == 'f')) {
+  } else if (n >= 2 && d[0] == 'P' &&
+             ((d[1] >= '1' && d[1] <= '6') || d[1] == 'F' || d[1] == 'f')) {
     size_t i = 2;
     int64_t w = 0, ht = 0;
     if (NextNumber(d, n, &i, &w) && NextNumber(d, n, &i, &ht)) {
@@ -178,6 +180,81 @@ std::string TooLarge(const std::string& what, const ImageHeader& h, int64_t max_
       what, h.width, h.height, static_cast<double>(h.width) * static_cast<double>(h.height) / 1e6,
       max_pixels);
 }
+// PNG through libpng with placedb's own error and warning handlers: OpenCV's
+// decoder leaves libpng's defaults, which print "libpng error: ..." (and
+// warnings) on stderr before placedb's own line. The transforms are
+// OpenCV 4.6's for IMREAD_COLOR (its PngDecoder::readData), so the pixels
+// are the same (png_decode_test holds the two equal on every kind of PNG).
+struct PngInput {
+  const uint8_t* data;
+  size_t size;
+  size_t pos;
+};
+struct PngErrors {
+  char message[160];
+};
+
+void PngRead(png_structp png, png_bytep out, png_size_t n) {
+  auto* in = static_cast<PngInput*>(png_get_io_ptr(png));
+  if (n > in->size - in->pos) png_error(png, "the data is cut short");
+  std::memcpy(out, in->data + in->pos, n);
+  in->pos += n;
+}
+void PngError(png_structp png, png_const_charp message) {
+  auto* errors = static_cast<PngErrors*>(png_get_error_ptr(png));
+  std::snprintf(errors->message, sizeof(errors->message), "%s", message);
+  png_longjmp(png, 1);
+}
+void PngWarning(png_structp, png_const_charp) {}
+
+// The PNG in `data` as BGR 8-bit, or empty with `*error` set. Every C++
+// object lives from before setjmp (a longjmp skips no destructor).
+cv::Mat DecodePng(const uint8_t* data, size_t size, std::string* error) {
+  PngInput input{data, size, 0};
+  PngErrors errors{};
+  cv::Mat image;
+  std::vector<png_bytep> rows;
+  png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &errors, PngError, PngWarning);
+  png_infop info = png ? png_create_info_struct(png) : nullptr;
+  png_infop end = png ? png_create_info_struct(png) : nullptr;
+  if (png == nullptr || info == nullptr || end == nullptr) {
+    png_destroy_read_struct(&png, &info, &end);
+    *error = "out of memory";
+    return cv::Mat();
+  }
+  if (setjmp(png_jmpbuf(png)) != 0) {
+    png_destroy_read_struct(&png, &info, &end);
+    *error = errors.message;
+    image.release();
+    return cv::Mat();
+  }
+  png_set_read_fn(png, &input, PngRead);
+  png_read_info(png, info);
+  png_uint_32 width = 0, height = 0;
+  int bit_depth = 0, color_type = 0;
+  png_get_IHDR(png, info, &width, &height, &bit_depth, &color_type, nullptr, nullptr, nullptr);
+  if (bit_depth == 16) png_set_strip_16(png);
+  png_set_strip_alpha(png);
+  if (color_type == PNG_COLOR_TYPE_PALETTE) png_set_palette_to_rgb(png);
+  if ((color_type & PNG_COLOR_MASK_COLOR) == 0 && bit_depth < 8)
+    png_set_expand_gray_1_2_4_to_8(png);
+  if (color_type & PNG_COLOR_MASK_COLOR) {
+    png_set_bgr(png);
+  } else {
+    png_set_gray_to_rgb(png);
+  }
+  png_set_interlace_handling(png);
+  png_read_update_info(png, info);
+  image.create(static_cast<int>(height), static_cast<int>(width), CV_8UC3);
+  if (png_get_rowbytes(png, info) != image.step[0]) png_error(png, "unexpected row size");
+  rows.resize(height);
+  for (png_uint_32 y = 0; y < height; ++y) rows[y] = image.ptr<png_byte>(static_cast<int>(y));
+  png_read_image(png, rows.data());
+  png_read_end(png, end);
+  png_destroy_read_struct(&png, &info, &end);
+  return image;
+}
+
 }  // namespace
 
 DecodedImage DecodeImage(const uint8_t* data, size_t size, const ImageReadOptions& options,
@@ -195,15 +272,21 @@ DecodedImage DecodeImage(const uint8_t* data, size_t size, const ImageReadOption
     out.too_large = true;
     return out;
   }
-  try {
-    const cv::Mat encoded(1, static_cast<int>(std::min<size_t>(size, INT32_MAX)), CV_8U,
-                          const_cast<uint8_t*>(data));
-    out.image = cv::imdecode(encoded, cv::IMREAD_COLOR);
-  } catch (const cv::Exception& e) {
-    out.image.release();
+  std::string decoder_error;
+  if (h->format == "png") {
+    out.image = DecodePng(data, size, &decoder_error);
+  } else {
+    try {
+      const cv::Mat encoded(1, static_cast<int>(std::min<size_t>(size, INT32_MAX)), CV_8U,
+                            const_cast<uint8_t*>(data));
+      out.image = cv::imdecode(encoded, cv::IMREAD_COLOR);
+    } catch (const cv::Exception& e) {
+      out.image.release();
+    }
   }
   if (out.image.empty()) {
-    out.error = "cannot read " + what + ": the " + h->format + " data cannot be decoded";
+    out.error = "cannot read " + what + ": the " + h->format + " data cannot be decoded" +
+                (decoder_error.empty() ? "" : " (" + decoder_error + ")");
   } else if (static_cast<int64_t>(out.image.cols) * out.image.rows > options.max_pixels) {
     // The decoder read another size than the header check (it cannot, for
     // the formats read; a guard all the same).
@@ -232,9 +315,10 @@ DecodedImage TryReadImageFile(const std::string& path, const ImageReadOptions& o
   } else if (!S_ISREG(st.st_mode)) {
     out.error = "cannot read " + what + ": not a regular file";
   } else if (static_cast<uint64_t>(st.st_size) > max_bytes) {
-    out.error = fmt::format("cannot read {}: the file has {} bytes, more than an image of the {} "
-                            "pixels allowed can need",
-                            what, st.st_size, options.max_pixels);
+    out.error = fmt::format(
+        "cannot read {}: the file has {} bytes, more than an image of the {} "
+        "pixels allowed can need",
+        what, st.st_size, options.max_pixels);
     out.too_large = true;
   } else {
     bytes.resize(static_cast<size_t>(st.st_size));

@@ -2,6 +2,7 @@
 
 #include <charconv>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <stdexcept>
 #include <system_error>
@@ -104,7 +105,12 @@ double ParseDouble(const std::string& token, const std::string& path, int line,
   const char* begin = SkipPlus(token);
   const char* end = token.data() + token.size();
   double value = 0.0;
-  const auto [ptr, ec] = std::from_chars(begin, end, value, std::chars_format::general);
+  auto [ptr, ec] = std::from_chars(begin, end, value, std::chars_format::general);
+  if (ec == std::errc::result_out_of_range && ptr == end) {
+    // An underflow (1e-320: a subnormal or 0) is a number; an overflow is not.
+    value = std::strtod(std::string(begin, end).c_str(), nullptr);
+    if (std::isfinite(value)) ec = std::errc();
+  }
   if (ec != std::errc() || ptr != end || !std::isfinite(value)) {
     ThrowLineError(path, line, "expected a number for " + what + ", got '" + token + "'");
   }

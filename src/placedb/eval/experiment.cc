@@ -126,14 +126,13 @@ nlohmann::json SettingJson(const ExperimentSetting& s) {
           {"whole_image", s.whole_image}};
 }
 
+// A setting's results file holds a record per query: generous, but bounded.
+constexpr size_t kMaxResultsFileBytes = size_t{1} << 30;
+
 // A JSON file the experiment wrote into its folder: damaged, it is
 // CorruptDatabase (the folder is ours, like a database).
 nlohmann::json ReadJsonFile(const std::string& path) {
-  try {
-    return nlohmann::json::parse(ReadFileToString(path));
-  } catch (const nlohmann::json::exception& e) {
-    PLACEDB_THROW_CORRUPT(path, " is not valid JSON (", e.what(), ")");
-  }
+  return ParseJson(ReadFileToString(path), path, JsonOrigin::kDatabaseFile, kMaxResultsFileBytes);
 }
 
 // A finished setting's results (settings/<name>.json), read back to resume:

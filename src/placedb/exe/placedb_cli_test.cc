@@ -11,9 +11,9 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <nlohmann/json.hpp>
 #include <iterator>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <string>
@@ -22,9 +22,9 @@
 #include "placedb/builder/builder.h"
 #include "placedb/exe/cli_testing.h"
 #include "placedb/feature/extractor.h"
+#include "placedb/query/query.h"
 #include "placedb/storage/database.h"
 #include "placedb/storage/keyframe_file.h"
-#include "placedb/query/query.h"
 #include "placedb/util/checksum.h"
 #include "placedb/util/testing.h"
 
@@ -116,7 +116,8 @@ TEST_F(CliTest, HelpListsEverySubcommandAndOption) {
 bool HasFlag(const std::string& help, const std::string& flag) {
   for (size_t at = help.find(flag); at != std::string::npos; at = help.find(flag, at + 1)) {
     const size_t end = at + flag.size();
-    if (end == help.size() || !(std::isalnum(static_cast<unsigned char>(help[end])) || help[end] == '-'))
+    if (end == help.size() ||
+        !(std::isalnum(static_cast<unsigned char>(help[end])) || help[end] == '-'))
       return true;
   }
   return false;
@@ -685,8 +686,7 @@ TEST_F(CliTest, QueryDrawsItsMatchesAndExperimentChecksItsGrid) {
 
   const std::string exp = "experiment --images " + kImages + " --db-last 12 --first 41 --truth " +
                           kTruth + " --queries 3 --no-report --quiet --out " + Path("exp");
-  for (const auto& [flags, phrase] :
-       std::vector<std::pair<std::string, std::string>>{
+  for (const auto& [flags, phrase] : std::vector<std::pair<std::string, std::string>>{
            {" --resize 1,2", "--resize takes 1, 4 and 16"},
            {" --verification maybe", "--verification takes on and off"},
            {" --features orb,,surf", "empty item"},
@@ -701,23 +701,26 @@ TEST_F(CliTest, QueryDrawsItsMatchesAndExperimentChecksItsGrid) {
   const CommandResult no_truth = Placedb("experiment --images " + kImages + " --out " + Path("e2"));
   EXPECT_EQ(no_truth.code, 1);
   EXPECT_TRUE(Contains(no_truth.output, "need a --truth CSV")) << no_truth.output;
-  const CommandResult ok = Placedb(exp + " --features orb --crop chroma --resize 16 --verification on");
+  const CommandResult ok =
+      Placedb(exp + " --features orb --crop chroma --resize 16 --verification on");
   ASSERT_EQ(ok.code, 0) << ok.output;
   EXPECT_TRUE(Contains(ok.output, "1 settings (0 finished earlier), 3 queries each")) << ok.output;
   EXPECT_TRUE(fs::exists(Path("exp/results.json")));
   EXPECT_FALSE(fs::exists(Path("exp/report.html")));
   // Two sequences: the database from one (the paper's training sequence),
   // the queries from another, truth from the poses.
-  const CommandResult two = Placedb(
-      "experiment --tum " PLACEDB_DATA_DIR "/tum_fr3_office_32 --first 17 --db-tum " PLACEDB_DATA_DIR
-      "/tum_fr3_office_mini --features orb --crop none --resize 16 --verification on --all "
-      "--no-report --quiet --out " + Path("two"));
+  const CommandResult two =
+      Placedb("experiment --tum " PLACEDB_DATA_DIR
+              "/tum_fr3_office_32 --first 17 --db-tum " PLACEDB_DATA_DIR
+              "/tum_fr3_office_mini --features orb --crop none --resize 16 --verification on --all "
+              "--no-report --quiet --out " +
+              Path("two"));
   ASSERT_EQ(two.code, 0) << two.output;
   EXPECT_TRUE(Contains(two.output, "16 queries each")) << two.output;
   EXPECT_TRUE(Contains(two.output, "tum_fr3_office_mini (4 frames)")) << two.output;
-  const CommandResult both = Placedb(
-      "experiment --tum " PLACEDB_DATA_DIR "/tum_fr3_office_32 --db-tum x --db-images y --out " +
-      Path("both"));
+  const CommandResult both = Placedb("experiment --tum " PLACEDB_DATA_DIR
+                                     "/tum_fr3_office_32 --db-tum x --db-images y --out " +
+                                     Path("both"));
   EXPECT_EQ(both.code, 1);
   EXPECT_TRUE(Contains(both.output, "excludes")) << both.output;
 }
@@ -763,16 +766,16 @@ std::string BlackPng(uint32_t width, uint32_t height) {
     for (int i = n - 1; i >= 0; --i) put((code >> i) & 1u, 1);
   };
   const uint64_t total = static_cast<uint64_t>(height) * (1 + (width + 7) / 8);
-  put(1, 1);                      // BFINAL
-  put(1, 2);                      // fixed Huffman
-  put_code(0x30, 8);              // literal 0
+  put(1, 1);          // BFINAL
+  put(1, 2);          // fixed Huffman
+  put_code(0x30, 8);  // literal 0
   uint64_t left = total - 1;
   for (; left >= 258; left -= 258) {
-    put_code(0xC5, 8);            // length 258 (code 285)
-    put_code(0, 5);               // distance 1 (code 0)
+    put_code(0xC5, 8);  // length 258 (code 285)
+    put_code(0, 5);     // distance 1 (code 0)
   }
   for (; left > 0; --left) put_code(0x30, 8);
-  put_code(0, 7);                 // end of block
+  put_code(0, 7);  // end of block
   if (bits > 0) put(0, 8 - bits);
   const uint32_t adler = (static_cast<uint32_t>(total % 65521) << 16) | 1u;
   z += be32(adler);
@@ -817,14 +820,17 @@ TEST_F(CliTest, DecompressionBombsAreRefusedFromTheirHeader) {
   fs::create_directories(frames);
   fs::copy_file(kImages + "/001.jpg", frames + "/001.jpg");
   fs::copy_file(bomb, frames + "/002.png");
-  const CommandResult build = Placedb("build --images " + frames + " --out " + Path("db2") + " --quiet");
+  const CommandResult build =
+      Placedb("build --images " + frames + " --out " + Path("db2") + " --quiet");
   EXPECT_EQ(build.code, 1) << build.output;
   EXPECT_TRUE(Contains(build.output, "30000 x 30000 pixels")) << build.output;
   EXPECT_FALSE(fs::exists(Path("db2/manifest.json")));
   // The bound is an option, with a range; a simulated camera is held to it.
-  const CommandResult zero = Placedb("query --db " + db + " --image " + small + " --max-image-pixels 0");
+  const CommandResult zero =
+      Placedb("query --db " + db + " --image " + small + " --max-image-pixels 0");
   EXPECT_EQ(zero.code, 1);
-  EXPECT_TRUE(Contains(zero.output, "--max-image-pixels must be in [1, 2^30] (got 0)")) << zero.output;
+  EXPECT_TRUE(Contains(zero.output, "--max-image-pixels must be in [1, 2^30] (got 0)"))
+      << zero.output;
   const CommandResult lowered =
       Placedb("query --db " + db + " --image " + kImages + "/003.jpg --max-image-pixels 1000");
   EXPECT_EQ(lowered.code, 1);
@@ -832,8 +838,9 @@ TEST_F(CliTest, DecompressionBombsAreRefusedFromTheirHeader) {
   const CommandResult camera = Placedb("build --images " + kImages + " --last 2 --out " +
                                        Path("db3") + " --frame-size 16384x16384 --quiet");
   EXPECT_EQ(camera.code, 1);
-  EXPECT_TRUE(Contains(camera.output, "--frame-size 16384x16384 is 268435456 pixels, more than "
-                                      "--max-image-pixels 40000000"))
+  EXPECT_TRUE(Contains(camera.output,
+                       "--frame-size 16384x16384 is 268435456 pixels, more than "
+                       "--max-image-pixels 40000000"))
       << camera.output;
   EXPECT_EQ(Lines(camera.output), 1u) << camera.output;
 }
@@ -848,8 +855,8 @@ TEST_F(CliTest, CraftedStoredImageNamesNeverLeaveTheDatabase) {
   // An absolute name short enough for the record's strings.
   const std::string absolute = "/tmp/placedb_victim_" + std::to_string(::getpid());
   WriteFile(absolute, "not yours\n");
-  for (const std::string& name : {std::string("../victim.txt"), absolute,
-                                  std::string("images/../../victim.txt")}) {
+  for (const std::string& name :
+       {std::string("../victim.txt"), absolute, std::string("images/../../victim.txt")}) {
     nlohmann::json manifest = nlohmann::json::parse(ReadFile(db + "/manifest.json"));
     const std::string old_name = manifest["files"]["keyframes"];
     std::string bytes = ReadFile(db + "/" + old_name);
@@ -894,13 +901,98 @@ TEST_F(CliTest, CraftedStoredImageNamesNeverLeaveTheDatabase) {
           "add --db " + db + " --images " + kImages + " --first 5 --last 5"}) {
       const CommandResult run = Placedb(command);
       EXPECT_EQ(run.code, 1) << command << "\n" << run.output;
-      EXPECT_TRUE(Contains(run.output, "stored image name '" + name + "' is not images/")) << run.output;
+      EXPECT_TRUE(Contains(run.output, "stored image name '" + name + "' is not images/"))
+          << run.output;
       EXPECT_EQ(Lines(run.output), 1u) << run.output;
       EXPECT_EQ(ReadFile(victim), "not yours\n") << command;
       EXPECT_EQ(ReadFile(absolute), "not yours\n") << command;
     }
   }
   fs::remove(absolute);
+}
+
+// The regular files directly inside `dir`, name -> content ("" for others).
+std::map<std::string, std::string> FolderContents(const std::string& dir) {
+  std::map<std::string, std::string> out;
+  for (const auto& entry : fs::directory_iterator(dir)) {
+    const std::string name = entry.path().filename().string();
+    out[name] = fs::is_regular_file(fs::symlink_status(entry.path())) ? ReadFile(entry.path()) : "";
+  }
+  return out;
+}
+
+// Issue 46, defect 1: a read wrote and deleted files (it swept images/ of
+// every PNG no keyframe names, through an images/ symlink out of the
+// database). Reads now write and delete nothing; the first writer removes
+// only the debris of placedb's own names, and never through a symlink.
+TEST_F(CliTest, ReadsDeleteNothingAndWritersNeverSweepThroughASymlink) {
+  const std::string db = Path("db");
+  ASSERT_EQ(Placedb("build --images " + kImages + " --last 5 --out " + db + " --quiet").code, 0);
+  const std::string shared = Path("shared");
+  fs::copy(db + "/images", shared);
+  WriteFile(shared + "/holiday.png", "mine\n");
+  WriteFile(shared + "/000099.png", "a placedb name, but not in the database's own folder\n");
+  fs::remove_all(db + "/images");
+  fs::create_directory_symlink(shared, db + "/images");
+  // A killed writer's debris: a temporary file and a build's folder.
+  WriteFile(db + "/manifest.json.tmp.99999999.1", "debris\n");
+  fs::create_directories(Path("db.building.99999999/images"));
+  const std::map<std::string, std::string> before = FolderContents(shared);
+  const std::map<std::string, std::string> db_before = FolderContents(db);
+  for (const std::string& read :
+       {"query --db " + db + " --image " + kImages + "/003.jpg", "info --db " + db,
+        "info --db " + db + " --json", "verify --db " + db,
+        "eval --db " + db + " --images " + kImages + " --first 41 --last 45 --truth " + kTruth +
+            " --quiet"}) {
+    const CommandResult run = Placedb(read);
+    EXPECT_EQ(run.code, 0) << read << "\n" << run.output;
+    EXPECT_EQ(FolderContents(shared), before) << read;
+    EXPECT_EQ(FolderContents(db), db_before) << read;
+    EXPECT_TRUE(fs::exists(Path("db.building.99999999"))) << read;
+  }
+  // A writer may not store an image through the link: one line, nothing done.
+  const CommandResult add =
+      PlacedbStderr("add --db " + db + " --images " + kImages + " --first 6 --last 6 --quiet");
+  EXPECT_EQ(add.code, 1) << add.output;
+  EXPECT_EQ(Lines(add.output), 1u) << add.output;
+  EXPECT_TRUE(Contains(add.output, db + "/images is a symlink")) << add.output;
+  EXPECT_EQ(FolderContents(shared), before);
+  // A writer that stores nothing removes its own kind of debris, beside and
+  // inside the folder, and nothing through the link.
+  const CommandResult remove = Placedb("remove --db " + db + " --ids 2");
+  EXPECT_EQ(remove.code, 0) << remove.output;
+  EXPECT_EQ(FolderContents(shared), before);
+  EXPECT_FALSE(fs::exists(db + "/manifest.json.tmp.99999999.1"));
+  EXPECT_FALSE(fs::exists(Path("db.building.99999999")));
+  EXPECT_TRUE(fs::is_symlink(db + "/images"));
+}
+
+// Issue 46, defect 2: an unknown manifest key holding 100 000 nested arrays
+// crashed `info` (SIGSEGV) and took `add`/`remove` to 2 GB; 1 000 000 levels
+// crashed more. Refused in one line before the manifest is walked, at both
+// depths, by every command; the manifest is left as it is.
+TEST_F(CliTest, DeeplyNestedManifestsAreRefusedInOneLine) {
+  const std::string db = Path("db");
+  ASSERT_EQ(Placedb("build --images " + kImages + " --last 3 --out " + db + " --quiet").code, 0);
+  const std::string text = ReadFile(db + "/manifest.json");
+  for (const size_t depth : {size_t{100000}, size_t{1000000}}) {
+    const std::string nested =
+        "{\"x\":" + std::string(depth, '[') + std::string(depth, ']') + "," + text.substr(1);
+    WriteFile(db + "/manifest.json", nested);
+    for (const std::string& command :
+         {"info --db " + db, "info --db " + db + " --json", "verify --db " + db,
+          "query --db " + db + " --image " + kImages + "/001.jpg",
+          "add --db " + db + " --images " + kImages + " --first 4 --last 4 --quiet",
+          "remove --db " + db + " --ids 1"}) {
+      const CommandResult run = PlacedbStderr(command);
+      EXPECT_EQ(run.code, 1) << depth << ": " << command << "\n" << run.output;
+      EXPECT_EQ(Lines(run.output), 1u) << run.output;
+      EXPECT_TRUE(Contains(run.output, depth == 100000 ? "JSON nested deeper than 64 levels"
+                                                       : "larger than 1048576 bytes"))
+          << run.output;
+      EXPECT_EQ(ReadFile(db + "/manifest.json"), nested) << command;
+    }
+  }
 }
 
 // Paths that are not UTF-8, and control characters in them: JSON output is
@@ -964,10 +1056,10 @@ TEST_F(CliTest, AddGivesNewFramesFreshIdsAndSkipsBySourceAndContent) {
   EXPECT_TRUE(Contains(add.output, "now has 36 keyframes, ids 1..36, next free id 37"))
       << add.output;
   // Image 035 is now keyframe 35, the id its new frame got.
-  ASSERT_EQ(Placedb("query --db " + db + " --image " + kImages + "/035.jpg --json " +
-                    Path("q.json"))
-                .code,
-            0);
+  ASSERT_EQ(
+      Placedb("query --db " + db + " --image " + kImages + "/035.jpg --json " + Path("q.json"))
+          .code,
+      0);
   EXPECT_EQ(nlohmann::json::parse(ReadFile(Path("q.json")))["best"]["keyframe_id"], 35);
 
   // TUM frames: fresh ids, their poses kept (3 of the 4 have one).
@@ -987,8 +1079,8 @@ TEST_F(CliTest, AddGivesNewFramesFreshIdsAndSkipsBySourceAndContent) {
       Placedb("add --db " + db + " --images " + folder + " --skip-existing --quiet");
   ASSERT_EQ(skip.code, 0) << skip.output;
   EXPECT_TRUE(Contains(skip.output, "added         2 keyframes, ids 41..42")) << skip.output;
-  EXPECT_TRUE(Contains(skip.output,
-                       "skipped       4 already in the database (same source and content)"))
+  EXPECT_TRUE(
+      Contains(skip.output, "skipped       4 already in the database (same source and content)"))
       << skip.output;
   // Same path, other content: added, and said.
   put(50, "002.jpg");
@@ -996,9 +1088,11 @@ TEST_F(CliTest, AddGivesNewFramesFreshIdsAndSkipsBySourceAndContent) {
       Placedb("add --db " + db + " --images " + folder + " --skip-existing --quiet");
   ASSERT_EQ(changed.code, 0) << changed.output;
   EXPECT_TRUE(Contains(changed.output, "added         1 keyframe, id 43")) << changed.output;
-  EXPECT_TRUE(Contains(changed.output, "skipped       5 already in the database")) << changed.output;
-  EXPECT_TRUE(Contains(changed.output, "new content   1 with the path of a keyframe but other "
-                                       "content, added as new keyframes"))
+  EXPECT_TRUE(Contains(changed.output, "skipped       5 already in the database"))
+      << changed.output;
+  EXPECT_TRUE(Contains(changed.output,
+                       "new content   1 with the path of a keyframe but other "
+                       "content, added as new keyframes"))
       << changed.output;
   // Nothing new: nothing is written (a save would replace the manifest by a
   // new file, another inode).
@@ -1008,7 +1102,8 @@ TEST_F(CliTest, AddGivesNewFramesFreshIdsAndSkipsBySourceAndContent) {
       Placedb("add --db " + db + " --images " + folder + " --skip-existing --quiet");
   ASSERT_EQ(nothing.code, 0) << nothing.output;
   EXPECT_TRUE(Contains(nothing.output, "added         0 keyframes")) << nothing.output;
-  EXPECT_TRUE(Contains(nothing.output, "skipped       6 already in the database")) << nothing.output;
+  EXPECT_TRUE(Contains(nothing.output, "skipped       6 already in the database"))
+      << nothing.output;
   struct stat after;
   ASSERT_EQ(::stat((db + "/manifest.json").c_str(), &after), 0);
   EXPECT_EQ(after.st_ino, before.st_ino);
@@ -1026,10 +1121,9 @@ TEST_F(CliTest, AddGivesNewFramesFreshIdsAndSkipsBySourceAndContent) {
   EXPECT_EQ(bad_name.code, 1);
   EXPECT_TRUE(Contains(bad_name.output, "cannot take an id from the file name 'frame_7.jpg'"))
       << bad_name.output;
-  EXPECT_EQ(std::count(bad_name.output.begin(), bad_name.output.end(), '\n'), 1)
-      << bad_name.output;
-  const CommandResult offset = Placedb("add --db " + db + " --images " + named +
-                                       " --id-offset 500 --skip-existing --quiet");
+  EXPECT_EQ(std::count(bad_name.output.begin(), bad_name.output.end(), '\n'), 1) << bad_name.output;
+  const CommandResult offset =
+      Placedb("add --db " + db + " --images " + named + " --id-offset 500 --skip-existing --quiet");
   ASSERT_EQ(offset.code, 0) << offset.output;
   EXPECT_TRUE(Contains(offset.output, "added         1 keyframe, id 501")) << offset.output;
   EXPECT_TRUE(Contains(offset.output, "next free id 502")) << offset.output;
@@ -1097,8 +1191,8 @@ TEST_F(CliTest, AddRemoveInfoHelpListsOnlyTheirFlagsWithExamples) {
     EXPECT_NE(examples, std::string::npos) << help.output;
   }
   const CommandResult add_help = Placedb("add --help");
-  for (const char* shown : {"--id-offset INT=0", "--ids-from-names", "--skip-existing",
-                            "--images", "--tum", "--bag", "--first INT=1", "--quiet"}) {
+  for (const char* shown : {"--id-offset INT=0", "--ids-from-names", "--skip-existing", "--images",
+                            "--tum", "--bag", "--first INT=1", "--quiet"}) {
     EXPECT_TRUE(Contains(add_help.output, shown)) << shown << "\n" << add_help.output;
   }
   // --partition is no flag of add: refused while parsing, nothing done.

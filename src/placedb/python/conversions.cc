@@ -5,7 +5,6 @@
 #include <cstring>
 #include <vector>
 
-
 namespace placedb {
 namespace python {
 namespace {
@@ -197,6 +196,19 @@ py::array FromImage(const cv::Mat& image) {
   const size_t row_bytes = static_cast<size_t>(image.cols) * image.elemSize();
   for (int r = 0; r < image.rows; ++r) std::memcpy(out.mutable_data(r), image.ptr(r), row_bytes);
   return std::move(out);
+}
+
+py::str FsString(const std::string& path) {
+  PyObject* text =
+      PyUnicode_DecodeFSDefaultAndSize(path.data(), static_cast<Py_ssize_t>(path.size()));
+  if (text == nullptr) throw py::error_already_set();
+  return py::reinterpret_steal<py::str>(text);
+}
+
+py::list FsStrings(const std::vector<std::string>& paths) {
+  py::list out;
+  for (const std::string& p : paths) out.append(FsString(p));
+  return out;
 }
 
 py::object FromJsonText(const std::string& json) {

@@ -9,6 +9,7 @@
 
 #include <opencv2/core.hpp>
 #include <string>
+#include <vector>
 
 #include "placedb/placedb.h"
 
@@ -50,6 +51,13 @@ py::tuple FromFeatures(const FeatureSet& features, int empty_cols);
 
 // A BGR (or gray) 8-bit cv::Mat as a new HxWx3 (HxW) uint8 array.
 py::array FromImage(const cv::Mat& image);
+
+// A path (bytes, as the file system holds them) as a Python str the way
+// os.fsdecode makes one: the file-system encoding, bytes that are not part
+// of it as surrogate escapes (os.fsencode gives the same bytes back). Never
+// raises for a field read. Every path the module returns goes through it.
+py::str FsString(const std::string& path);
+py::list FsStrings(const std::vector<std::string>& paths);
 
 // The library's JSON text as Python (json.loads): null -> None, bool, int,
 // float, str, list, dict.

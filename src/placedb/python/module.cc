@@ -378,9 +378,9 @@ py::dict RunExperimentInto(const fs::path& out, const py::object& database, bool
   d["num_reused"] = summary.num_reused;
   d["num_queries"] = summary.num_queries;
   d["num_database_frames"] = data.database.size();
-  d["pictures"] = summary.pictures;
-  d["results"] = summary.results;
-  d["report"] = report ? py::object(py::str(report_path)) : py::object(py::none());
+  d["pictures"] = FsStrings(summary.pictures);
+  d["results"] = FsString(summary.results);
+  d["report"] = report ? py::object(FsString(report_path)) : py::object(py::none());
   return d;
 }
 
@@ -613,9 +613,12 @@ PYBIND11_MODULE(placedb, m) {
           "the keyframe's pose (map coordinates), a Pose, or None when unknown")
       .def_readonly("timestamp", &RankedKeyframe::timestamp,
                     "of the keyframe's source frame, seconds; -1 when unknown")
-      .def_readonly("source", &RankedKeyframe::source, "the keyframe's source image")
-      .def_readonly("stored_image", &RankedKeyframe::stored_image,
-                    "its stored PNG (database directory joined); '' when none")
+      .def_property_readonly(
+          "source", [](const RankedKeyframe& k) { return FsString(k.source); },
+          "the keyframe's source image (a str as os.fsdecode gives)")
+      .def_property_readonly(
+          "stored_image", [](const RankedKeyframe& k) { return FsString(k.stored_image); },
+          "its stored PNG (database directory joined); '' when none")
       .def_readonly("whole_image", &RankedKeyframe::whole_image,
                     "cosine similarity of the whole-image descriptors, in [-1, 1], when the query "
                     "scored the channel (whole_image_weight > 0); None otherwise")
@@ -690,12 +693,13 @@ PYBIND11_MODULE(placedb, m) {
           "pose", [](const KeyframeInfo& k) { return OptionalPose(k.keyframe.pose); },
           "a Pose, or None when unknown")
       .def_property_readonly(
-          "source", [](const KeyframeInfo& k) { return k.keyframe.source; },
-          "path of the source image")
-      .def_readonly("stored_image", &KeyframeInfo::stored_image,
-                    "path of the stored PNG (database directory joined); '' when none")
+          "source", [](const KeyframeInfo& k) { return FsString(k.keyframe.source); },
+          "path of the source image (a str as os.fsdecode gives: os.fsencode gives its bytes)")
       .def_property_readonly(
-          "image_file", [](const KeyframeInfo& k) { return k.keyframe.image_file; },
+          "stored_image", [](const KeyframeInfo& k) { return FsString(k.stored_image); },
+          "path of the stored PNG (database directory joined); '' when none")
+      .def_property_readonly(
+          "image_file", [](const KeyframeInfo& k) { return FsString(k.keyframe.image_file); },
           "the stored PNG relative to the database directory; '' when none")
       .def_property_readonly(
           "crop",
@@ -728,8 +732,9 @@ PYBIND11_MODULE(placedb, m) {
           "recorded")
       .def_readonly("num_features", &KeyframeInfo::num_features)
       .def("__repr__", [](const KeyframeInfo& k) {
-        return fmt::format("Keyframe(id={}, source='{}', stored_image='{}', pose={})",
-                           k.keyframe.id, k.keyframe.source, k.stored_image,
+        return fmt::format("Keyframe(id={}, source={}, stored_image={}, pose={})", k.keyframe.id,
+                           py::repr(FsString(k.keyframe.source)).cast<std::string>(),
+                           py::repr(FsString(k.stored_image)).cast<std::string>(),
                            k.keyframe.pose ? PoseRepr(*k.keyframe.pose) : "None");
       });
 
@@ -761,7 +766,9 @@ PYBIND11_MODULE(placedb, m) {
       .def_property_readonly("whole_image_dims", &PlaceDatabase::whole_image_dims,
                              "values per keyframe of the whole-image channel (width x height), "
                              "0 when the database has none")
-      .def_property_readonly("directory", &PlaceDatabase::directory)
+      .def_property_readonly(
+          "directory", [](const PlaceDatabase& db) { return FsString(db.directory()); },
+          "the folder opened, as given (a str as os.fsdecode gives)")
       .def_property_readonly("reads_features", &PlaceDatabase::reads_features,
                              "whether queries read the keyframes' features from the file "
                              "(read_features, read_features_above_mb) rather than mapping them")

@@ -617,5 +617,82 @@ class PlaceDbTest(unittest.TestCase):
         self.assertGreater(count, 80)
 
 
+class NothingLostTest(unittest.TestCase):
+    """Reads write and delete nothing; a manifest nested too deep is refused;
+    any file name reaches Python (issue 46)."""
+
+    def setUp(self):
+        placedb.set_log_level("warn")
+        self.tmp = tempfile.mkdtemp(prefix="placedb_python_nothing_lost_")
+
+    def tearDown(self):
+        shutil.rmtree(self.tmp, ignore_errors=True)
+
+    def listing(self, folder):
+        out = {}
+        for name in sorted(os.listdir(folder)):
+            with open(os.path.join(folder, name), "rb") as f:
+                out[name] = f.read()
+        return out
+
+    def test_reads_never_delete_through_an_images_symlink(self):
+        db_dir = os.path.join(self.tmp, "db")
+        placedb.build(db_dir, images=IMAGES, last=5)
+        shared = os.path.join(self.tmp, "shared")
+        shutil.copytree(os.path.join(db_dir, "images"), shared)
+        with open(os.path.join(shared, "holiday.png"), "wb") as f:
+            f.write(b"mine")
+        shutil.rmtree(os.path.join(db_dir, "images"))
+        os.symlink(shared, os.path.join(db_dir, "images"))
+        debris = os.path.join(db_dir, "manifest.json.tmp.99999999.1")
+        with open(debris, "wb") as f:
+            f.write(b"a killed writer's")
+        before = self.listing(shared)
+        db = placedb.PlaceDatabase(db_dir)
+        result = db.query(placedb.read_image(image_path(3)))
+        self.assertEqual(result.best.keyframe_id, 3)
+        db.verify()
+        placedb.set_log_level("error")  # the truth names ids beyond these frames
+        placedb.evaluate(db, images=IMAGES, first=41, last=46, truth=TRUTH)
+        placedb.set_log_level("warn")
+        del db
+        self.assertEqual(self.listing(shared), before)
+        self.assertTrue(os.path.exists(debris), "a read removed a file")
+
+    def test_a_deeply_nested_manifest_is_refused(self):
+        db_dir = os.path.join(self.tmp, "db")
+        placedb.build(db_dir, images=IMAGES, last=3)
+        path = os.path.join(db_dir, "manifest.json")
+        text = open(path).read()
+        for depth in (100000, 1000000):
+            with open(path, "w") as f:
+                f.write('{"x":' + "[" * depth + "]" * depth + "," + text[1:])
+            with self.assertRaises(placedb.CorruptDatabaseError) as caught:
+                placedb.PlaceDatabase(db_dir)
+            self.assertTrue("nested deeper than 64" in str(caught.exception) or
+                            "larger than" in str(caught.exception), str(caught.exception))
+        with open(path, "w") as f:
+            f.write(text)
+        self.assertEqual(len(placedb.PlaceDatabase(db_dir).keyframe_ids), 3)
+
+    def test_a_file_name_that_is_not_utf8_reads_as_os_fsdecode_gives(self):
+        folder = os.path.join(os.fsencode(self.tmp), b"images")
+        os.makedirs(folder)
+        latin1 = os.path.join(folder, b"caf\xe9.jpg")
+        shutil.copy(image_path(1), os.fsdecode(latin1))
+        shutil.copy(image_path(2), os.fsdecode(os.path.join(folder, b"plain.jpg")))
+        db_dir = os.path.join(self.tmp, "db")
+        placedb.build(db_dir, images=os.fsdecode(folder))
+        db = placedb.PlaceDatabase(db_dir)
+        sources = {os.fsencode(db.keyframe(i).source) for i in db.keyframe_ids}
+        self.assertIn(latin1, sources)
+        self.assertIn(r"caf\udce9.jpg", repr(db.keyframe(db.keyframe_ids[0])) +
+                      repr(db.keyframe(db.keyframe_ids[1])))
+        result = db.query(placedb.read_image(os.fsdecode(latin1)))
+        self.assertEqual(os.fsencode(result.best.source), latin1)
+        self.assertTrue(os.path.exists(result.best.stored_image))
+        self.assertEqual(os.fsencode(db.directory), os.fsencode(db_dir))
+
+
 if __name__ == "__main__":
     unittest.main()

@@ -252,16 +252,15 @@ std::string ShortlistToJson(const Shortlist& shortlist, int indent) {
 
 namespace {
 
+// A result or shortlist received over the wire: its ranked list is bounded
+// by top_k, so a few MiB at most.
+constexpr size_t kMaxResultJsonBytes = size_t{64} << 20;
+
 // `json` parsed as a T (`what` names it in the error for text that is not JSON).
 template <typename T>
 T ParseJsonText(const std::string& json, const char* what) {
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(json);
-  } catch (const nlohmann::json::exception& e) {
-    PLACEDB_THROW_INVALID("a ", what, " that is not JSON: ", e.what());
-  }
-  return j.get<T>();
+  return ParseJson(json, std::string("a ") + what, JsonOrigin::kCaller, kMaxResultJsonBytes)
+      .get<T>();
 }
 
 }  // namespace

@@ -412,9 +412,11 @@ TEST_P(OnlineTest, SavingASubsetOverTheDatabaseIsRefused) {
 }
 
 // What killed writers leave (temporary files of gone processes, keyframe and
-// index files no manifest names, PNGs no keyframe names) is swept by the
-// next open; a live process's temporary file and symlinks are left alone.
-TEST_P(OnlineTest, DebrisOfKilledWritersIsSweptOnOpen) {
+// index files no manifest names, PNGs of placedb's naming no keyframe names)
+// is left by a read and swept by the next writer's first change and its
+// save; a live process's temporary file, a user's file and symlinks are left
+// alone.
+TEST_P(OnlineTest, DebrisOfKilledWritersIsSweptByTheNextWriter) {
   const std::string dir = Dir();
   auto touch = [](const std::string& path) { std::ofstream(path) << "debris"; };
   const std::string gone = "99999999";  // above any pid_max: a gone process
@@ -434,27 +436,35 @@ TEST_P(OnlineTest, DebrisOfKilledWritersIsSweptOnOpen) {
   const std::string outside = tmp_.Path("outside.png");
   touch(outside);
   fs::create_symlink(outside, dir + "/images/000888.png");
+  const std::string users = dir + "/images/holiday.png";
+  touch(users);
   PlaceDatabase db = PlaceDatabase::Open(Dir());
+  db.Query(cv::imread(RtabmapImage(2)));
+  for (const std::string& path : debris) EXPECT_TRUE(fs::exists(path)) << "a read removed " << path;
+  db.Remove(3);  // the first change: the writer sweeps
   for (const std::string& path : debris) EXPECT_FALSE(fs::exists(path)) << path;
   EXPECT_TRUE(fs::exists(live));
   EXPECT_TRUE(fs::exists(outside));
+  EXPECT_TRUE(fs::exists(users));
   EXPECT_TRUE(fs::is_symlink(dir + "/images/000888.png"));
-  EXPECT_EQ(db.size(), 30u);
+  EXPECT_EQ(db.size(), 29u);
   EXPECT_TRUE(fs::exists(dir + "/images/000001.png"));
+  EXPECT_TRUE(fs::exists(dir + "/images/000003.png"));  // not saved yet
   fs::remove(live);
   fs::remove(dir + "/images/000888.png");
-  // The same after a Save (the writer sweeps too).
+  // The same at the Save.
   for (const std::string& path : debris) touch(path);
-  db.Remove(3);
   db.Save();
   for (const std::string& path : debris) EXPECT_FALSE(fs::exists(path)) << path;
   EXPECT_FALSE(fs::exists(dir + "/images/000003.png"));
+  EXPECT_TRUE(fs::exists(users));
 }
 
 // Real kills: a writer process (add, save, remove, save, ...) killed with
-// SIGKILL at moments spread over its work; after each, the next open leaves
-// only what the manifest names: its keyframe file, its index files, the PNGs
-// of its keyframes, and no temporary file.
+// SIGKILL at moments spread over its work; after each, a read changes
+// nothing, and the next writer leaves only what the manifest names: its
+// keyframe file, its index files, the PNGs of its keyframes, and no
+// temporary file.
 TEST_P(OnlineTest, NoDebrisSurvivesTheNextOpenAfterKills) {
   if (testing_util::kThreadSanitizer) GTEST_SKIP() << "forks: not under ThreadSanitizer";
   const std::string dir = Dir();
@@ -508,6 +518,21 @@ TEST_P(OnlineTest, NoDebrisSurvivesTheNextOpenAfterKills) {
     ASSERT_TRUE(started) << "the writer failed before its first change";
     ASSERT_TRUE(WIFSIGNALED(status)) << "the writer ended by itself, code " << WEXITSTATUS(status);
 
+    auto listing = [&] {
+      std::set<std::string> names;
+      for (const auto& e : fs::recursive_directory_iterator(dir))
+        names.insert(e.path().lexically_relative(dir).string());
+      return names;
+    };
+    const std::set<std::string> before = listing();
+    PlaceDatabase::Open(dir).Query(images[0]);
+    EXPECT_EQ(listing(), before) << "a read changed the folder";
+    {
+      PlaceDatabase writer = PlaceDatabase::Open(dir);
+      const int32_t id = writer.keyframe_ids().front();
+      writer.Remove(id);
+      writer.Save();
+    }
     const PlaceDatabase db = PlaceDatabase::Open(dir);
     const nlohmann::json manifest = StorageView(db).database().info();
     std::set<std::string> named = {"manifest.json", "images",

@@ -19,6 +19,7 @@
 #include "placedb/feature/extractor.h"
 #include "placedb/query/query.h"
 #include "placedb/session/storage_view.h"
+#include "placedb/storage/folder.h"
 #include "placedb/util/check.h"
 #include "placedb/util/fair_shared_mutex.h"
 #include "placedb/util/file_io.h"
@@ -276,6 +277,23 @@ QueryContext PlaceDatabase::Impl::Context(const std::vector<int32_t>* ids,
   return context;
 }
 
+namespace {
+// Removes the stored images `names` ("images/<name>") of the folder `dir`,
+// never through a symlinked images/ (storage/folder.h). Best effort.
+void RemoveStoredImages(const std::string& dir, const std::vector<std::string>& names) {
+  if (names.empty()) return;
+  try {
+    const std::unique_ptr<DirectoryHandle> images =
+        DirectoryHandle::OpenChild(DirectoryHandle(dir), kStoredImageFolder);
+    if (!images) return;
+    for (const std::string& name : names)
+      images->RemoveRegularFile(fs::path(name).filename().string());
+  } catch (const Error& e) {
+    spdlog::warn("{}: cannot remove stored images: {}", dir, e.what());
+  }
+}
+}  // namespace
+
 PlaceDatabase::Impl::~Impl() {
   {
     const std::lock_guard<std::mutex> lock(background);
@@ -284,8 +302,9 @@ PlaceDatabase::Impl::~Impl() {
   background_changed.notify_all();
   if (prefetcher.joinable()) prefetcher.join();
   if (releaser.joinable()) releaser.join();
-  std::error_code ignore;
-  for (const std::string& name : unsaved_images) fs::remove(fs::path(dir) / name, ignore);
+  // This session's images of keyframes it did not save (it still holds the
+  // folder's lock: `folder_lock` goes after this body).
+  RemoveStoredImages(dir, unsaved_images);
 }
 
 namespace {
@@ -329,42 +348,18 @@ std::optional<BowIndex> OpenBowIndex(const std::string& dir, const Database& db,
 }
 
 // Removes what killed writers left in the database folder `dir`, whose
-// current generation is `db` (the whole database): temporary files of
-// processes that are gone, keyframe and bag-of-words files the manifest does
-// not name, PNGs in images/ that no keyframe names. The caller holds the
-// folder's lock. Best effort: an error (a read-only folder) skips a file.
+// current generation is `db` (the whole database); the rule is
+// storage/folder.h's. The caller holds the folder's lock.
 void SweepDebris(const std::string& dir, const Database& db) {
-  std::error_code ec;
-  size_t swept = SweepTempFiles(dir) + SweepTempFiles((fs::path(dir) / "images").string());
   std::string bow_name;
   const nlohmann::json& manifest = db.info();
   if (manifest.contains("index") && manifest["index"].is_object()) {
     const auto it = manifest["index"].find("bow");
     if (it != manifest["index"].end() && it->is_string()) bow_name = it->get<std::string>();
   }
-  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
-    const std::string name = it->path().filename().string();
-    const bool stale_keyframes =
-        (Database::IsKeyframesFileName(name) && name != db.keyframes_file()) ||
-        name == "keyframes.writing.bin";
-    const bool stale_bow = IsBowIndexFileName(name) && name != bow_name;
-    if ((stale_keyframes || stale_bow) && RemoveRegularFile(it->path().string())) ++swept;
-  }
-  const fs::path images = fs::path(dir) / "images";
-  if (fs::is_directory(images, ec)) {
-    std::unordered_set<std::string> named;
-    named.reserve(db.size());
-    for (const Keyframe& k : db.keyframes()) {
-      if (!k.image_file.empty()) named.insert(fs::path(k.image_file).filename().string());
-    }
-    for (fs::directory_iterator it(images, ec), end; !ec && it != end; it.increment(ec)) {
-      const std::string name = it->path().filename().string();
-      const bool png = name.size() >= 5 && name.compare(name.size() - 4, 4, ".png") == 0;
-      if (png && named.count(name) == 0 && RemoveRegularFile(it->path().string())) ++swept;
-    }
-  }
-  if (swept > 0)
-    spdlog::info("{}: removed {} files left by writers that did not finish", dir, swept);
+  SweepDatabaseDebris(dir, db, [&](const std::string& name) {
+    return IsBowIndexFileName(name) && name != bow_name;
+  });
 }
 
 // The manifest's "ids" entry into `impl`; absent (an earlier placedb's
@@ -498,13 +493,8 @@ PlaceDatabase PlaceDatabase::Open(const std::string& dir, const OpenOptions& opt
   impl->removed_since = std::move(ids.removed_since);
   impl->clusters = ClusterSet::Make(db, options.clusters);
   impl->removed.assign(db.size(), 0);
-  // Debris of killed writers goes, unless another process is changing the
-  // database (its files in progress are not debris) or we may not write.
-  if (impl->whole && ::access(dir.c_str(), W_OK) == 0) {
-    if (const std::unique_ptr<DirectoryLock> lock = DirectoryLock::TryLock(dir)) {
-      SweepDebris(dir, db);
-    }
-  }
+  // A read writes and deletes nothing (storage/folder.h): debris waits for
+  // a writer (BeginChange).
   if (options.prefetch && impl->whole) impl->StartPrefetch();
   if (options.resident_limit_mb > 0) impl->StartReleaser();
   return PlaceDatabase(std::move(impl));
@@ -778,8 +768,8 @@ void RequireWholeDatabase(bool whole, const std::string& subset, const char* wha
 void PlaceDatabase::BeginChange() {
   Impl& m = *impl_;
   if (m.folder_lock) return;
-  // A reader that opened the database may hold the lock for a moment while
-  // it sweeps debris: wait up to 1 s before deciding another writer has it.
+  // Another writer finishing its save holds the lock for a moment: wait up
+  // to 1 s before deciding another writer has it.
   std::unique_ptr<DirectoryLock> lock = DirectoryLock::TryLock(m.dir);
   for (int attempt = 0; !lock && attempt < 20; ++attempt) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
@@ -794,12 +784,14 @@ void PlaceDatabase::BeginChange() {
                      "time (try again when it has saved)");
   }
   const std::string manifest_path = (fs::path(m.dir) / Database::kManifestFile).string();
-  std::string text;
   bool same = false;
   try {
-    text = ReadFileToString(manifest_path);
-    const nlohmann::json manifest = nlohmann::json::parse(text);
-    same = manifest.at("files").at("keyframes").get<std::string>() == m.db.keyframes_file();
+    std::string text;
+    if (DirectoryHandle(m.dir).ReadFile(Database::kManifestFile, &text, kMaxManifestBytes)) {
+      const nlohmann::json manifest =
+          ParseJson(text, manifest_path, JsonOrigin::kDatabaseFile, kMaxManifestBytes);
+      same = manifest.at("files").at("keyframes").get<std::string>() == m.db.keyframes_file();
+    }
   } catch (const std::exception&) {
     same = false;
   }
@@ -809,6 +801,8 @@ void PlaceDatabase::BeginChange() {
                      "to change it");
   }
   m.folder_lock = std::move(lock);
+  // The first writer since a crash removes what the crashed one left.
+  SweepDebris(m.dir, m.db);
 }
 
 void PlaceDatabase::Add(const Frame& frame, const cv::Mat& image, uint64_t source_hash) {
@@ -819,6 +813,9 @@ void PlaceDatabase::Add(const Frame& frame, const cv::Mat& image, uint64_t sourc
     PLACEDB_THROW_INVALID("the image of keyframe ", frame.id, " must be 8-bit gray, BGR or BGRA");
   }
   if (frame.id < 1) PLACEDB_THROW_INVALID("keyframe id ", frame.id, " must be at least 1");
+  // Where its image goes, before anything is done.
+  std::unique_ptr<DirectoryHandle> images;
+  if (impl_->build.store_images) images = StoredImageFolderForWriting(impl_->dir);
   // The slow part, with no lock held.
   cv::Mat bgr = image;
   if (image.channels() == 1) cv::cvtColor(image, bgr, cv::COLOR_GRAY2BGR);
@@ -836,22 +833,17 @@ void PlaceDatabase::Add(const Frame& frame, const cv::Mat& image, uint64_t sourc
   KeepTrackedOnline(m.db, m.build, &processed);
   BeginChange();
   std::string written;
-  if (m.build.store_images) {
-    char name[32];
-    std::snprintf(name, sizeof(name), "images/%06d.png", frame.id);
-    std::error_code ec;
-    fs::create_directories(fs::path(m.dir) / "images", ec);
-    if (ec) PLACEDB_THROW_IO("cannot create ", m.dir, "/images: ", ec.message());
-    WriteFileAtomic((fs::path(m.dir) / name).string(),
-                    std::string(reinterpret_cast<const char*>(png.data()), png.size()));
+  if (images) {
+    const std::string name = StoredImageFileName(frame.id);
+    images->WriteFileAtomic(fs::path(name).filename().string(),
+                            std::string(reinterpret_cast<const char*>(png.data()), png.size()));
     written = name;
     processed.keyframe.image_file = name;
   }
   try {
     AddLocked(std::move(processed.keyframe), processed.features);
   } catch (...) {
-    std::error_code ignore;
-    if (!written.empty()) fs::remove(fs::path(m.dir) / written, ignore);
+    if (images) images->RemoveRegularFile(fs::path(written).filename().string());
     throw;
   }
   if (!written.empty()) m.unsaved_images.push_back(written);
@@ -1083,9 +1075,8 @@ void PlaceDatabase::Save() {
   }
   compacted.Save(m.dir);
   // The new generation is in place: what only the old one used goes.
-  std::error_code ignore;
-  if (!old_bow.empty()) fs::remove(fs::path(m.dir) / old_bow, ignore);
-  for (const std::string& image : dropped_images) fs::remove(fs::path(m.dir) / image, ignore);
+  if (!old_bow.empty()) DirectoryHandle(m.dir).RemoveRegularFile(old_bow);
+  RemoveStoredImages(m.dir, dropped_images);
 
   // Read back what was written, as a reopened session would.
   OpenOptions options = m.open;

@@ -1,7 +1,5 @@
 // The session API as a client uses it: open a built database from disk and
 // ask where images were taken.
-#include "placedb/builder/builder.h"
-#include "placedb/query/query.h"
 #include "placedb/session/place_database.h"
 
 #include <gtest/gtest.h>
@@ -15,10 +13,12 @@
 #include <sstream>
 #include <thread>
 
+#include "placedb/builder/builder.h"
 #include "placedb/dataset/image_folder.h"
+#include "placedb/query/query.h"
+#include "placedb/session/storage_view.h"
 #include "placedb/util/file_io.h"
 #include "placedb/util/testing.h"
-#include "placedb/session/storage_view.h"
 
 namespace placedb {
 namespace {
@@ -139,7 +139,7 @@ TEST_F(PlaceDatabaseTest, PartitionsOpenedFromDiskMergeIntoTheWholeAnswer) {
 // just those keyframes.
 TEST_F(PlaceDatabaseTest, RestrictionsAndIdSubsets) {
   const PlaceDatabase db = PlaceDatabase::Open(Dir());
-  const cv::Mat image = cv::imread(RtabmapImage(60));                 // true matches 18..22
+  const cv::Mat image = cv::imread(RtabmapImage(60));  // true matches 18..22
   const QueryResult among = db.QueryAmong(image, {1, 2, 3, 21, 22});
   EXPECT_EQ(among.num_examined, 5u);
   ASSERT_NE(among.best(), nullptr);
@@ -273,6 +273,135 @@ TEST(PlaceDatabaseSmallFramesTest, UpscalingSmallFramesKeepsRecall) {
   EXPECT_GT(features[1], 2 * features[0]);
   EXPECT_GE(correct[1], correct[0]);
   EXPECT_GE(correct[1], 42);
+}
+
+// Every file under `root` (symlinks as "-> target"), path -> content.
+std::map<std::string, std::string> Tree(const fs::path& root) {
+  std::map<std::string, std::string> out;
+  for (auto it = fs::recursive_directory_iterator(root); it != fs::recursive_directory_iterator();
+       ++it) {
+    const fs::path p = it->path();
+    const std::string key = p.lexically_relative(root).string();  // links not resolved
+    if (fs::is_symlink(fs::symlink_status(p))) {
+      out[key] = "-> " + fs::read_symlink(p).string();
+    } else if (fs::is_regular_file(fs::symlink_status(p))) {
+      out[key] = ReadFileToString(p.string());
+    } else {
+      out[key] = "(folder)";
+    }
+  }
+  return out;
+}
+
+// The mutation family of the images/ folder (issue 46): a symlink out of the
+// database (to a folder, a file, nothing), links inside it, a file in its
+// place, a user's files and a killed writer's debris beside the stored
+// images. Reads (open, query, verify, the keyframe table) change nothing
+// anywhere; a writer (remove and save, add) removes only placedb's own debris
+// in a real images/ folder, never anything through a link or outside the
+// database, and refuses to store an image through a link.
+TEST(PlaceDatabaseFolderTest, MutatedImagesFolders) {
+  testing_util::TempDir tmp;
+  BuildOptions options;
+  options.threads = 2;
+  options.progress = false;
+  options.index = IndexKind::kNone;
+  const std::vector<Frame> frames = ListImageFolder(kImages, 1, 4);
+  BuildDatabase(frames, options, tmp.Path("original"), "rtabmap 1..4");
+  const cv::Mat query = cv::imread(RtabmapImage(2));
+  const std::string dead_temp = "000003.png.tmp.99999999.1";
+  const std::string live_temp = "000003.png.tmp." + std::to_string(::getpid()) + ".9";
+  for (int layout = 0; layout < 7; ++layout) {
+    const fs::path root = tmp.Path("case" + std::to_string(layout));
+    const fs::path db = root / "db", images = db / "images", outside = root / "outside";
+    fs::create_directories(root);
+    fs::copy(tmp.Path("original"), db, fs::copy_options::recursive);
+    fs::create_directories(outside);
+    fs::copy(images, outside / "copies");
+    WriteFileAtomic((outside / "holiday.png").string(), "mine");
+    WriteFileAtomic((outside / "000077.png").string(), "mine too");
+    bool linked = true;  // images/ is no folder of the database's
+    switch (layout) {
+      case 0:  // a link to a folder holding the stored images and more
+        fs::remove_all(images);
+        fs::copy(outside / "copies", outside / "shared");
+        fs::copy_file(outside / "holiday.png", outside / "shared" / "holiday.png");
+        fs::copy_file(outside / "000077.png", outside / "shared" / "000077.png");
+        fs::create_directory_symlink(outside / "shared", images);
+        break;
+      case 1:  // a link to a file
+        fs::remove_all(images);
+        fs::create_symlink(outside / "holiday.png", images);
+        break;
+      case 2:  // a link to nothing
+        fs::remove_all(images);
+        fs::create_symlink(outside / "gone", images);
+        break;
+      case 3:  // a file
+        fs::remove_all(images);
+        WriteFileAtomic(images.string(), "a file");
+        break;
+      default:  // a real folder with links, a user's file and debris in it
+        linked = false;
+        fs::create_symlink(outside / "000077.png", images / "000077.png");
+        if (layout >= 5) {
+          fs::remove(images / "000001.png");
+          fs::create_symlink(outside / "holiday.png", images / "000001.png");
+        }
+        WriteFileAtomic((images / "holiday.png").string(), "mine, inside");
+        WriteFileAtomic((images / dead_temp).string(), "debris");
+        WriteFileAtomic((images / live_temp).string(), "a live writer's");
+        if (layout == 6) WriteFileAtomic((images / "000088.png").string(), "an orphan");
+        break;
+    }
+    const std::map<std::string, std::string> before = Tree(root);
+    {
+      const PlaceDatabase reader = PlaceDatabase::Open(db.string());
+      EXPECT_FALSE(reader.Query(query).ranked.empty()) << layout;
+      reader.Verify();
+      OpenOptions table;
+      table.keyframe_table = true;
+      EXPECT_EQ(PlaceDatabase::Open(db.string(), table).size(), 4u);
+    }
+    EXPECT_EQ(Tree(root), before) << "a read changed the files, layout " << layout;
+    {
+      PlaceDatabase writer = PlaceDatabase::Open(db.string());
+      ASSERT_TRUE(writer.Remove(1));
+      writer.Save();
+    }
+    std::map<std::string, std::string> after = Tree(root);
+    for (const auto& [path, content] : before) {
+      if (path.rfind("outside", 0) == 0) {
+        EXPECT_EQ(after[path], content) << layout << ": " << path;  // nothing outside, ever
+      }
+    }
+    if (linked) {
+      for (const auto& [path, content] : before) {
+        if (path.rfind("db/images", 0) == 0) {
+          EXPECT_EQ(after[path], content) << layout << path;
+        }
+      }
+      const Frame fifth = ListImageFolder(kImages, 5, 5)[0];
+      PlaceDatabase adder = PlaceDatabase::Open(db.string());
+      EXPECT_TRUE(
+          ThrowsWith<InvalidArgument>([&] { adder.AddFrames({fifth}, AddOptions(), false); },
+                                      "placedb stores keyframe images only in a real "
+                                      "folder of the database"))
+          << layout;
+      EXPECT_EQ(adder.size(), 3u);
+    } else {
+      // The removed keyframe's image goes (unless it is a link: links stay);
+      // so do a dead writer's temporary file and an orphan of placedb's
+      // naming; the user's file, the live writer's, and links stay.
+      EXPECT_EQ(after.count("db/images/000001.png"), layout >= 5 ? 1u : 0u) << layout;
+      EXPECT_EQ(after.count("db/images/" + dead_temp), 0u) << layout;
+      EXPECT_EQ(after.count("db/images/000088.png"), 0u) << layout;
+      EXPECT_EQ(after["db/images/" + live_temp], "a live writer's") << layout;
+      EXPECT_EQ(after["db/images/holiday.png"], "mine, inside") << layout;
+      EXPECT_EQ(after.count("db/images/000077.png"), 1u) << layout;
+      EXPECT_EQ(after["db/images/000002.png"], before.at("db/images/000002.png")) << layout;
+    }
+  }
 }
 
 }  // namespace

@@ -54,7 +54,6 @@ static_assert(offsetof(cv::KeyPoint, pt) == 0 && offsetof(cv::KeyPoint, size) ==
 namespace {
 
 constexpr size_t kMaxPathBytes = 65536;
-constexpr size_t kMaxManifestBytes = 64 << 20;
 // What asking a keyframe table (LoadContents::kKeyframeTable) for features
 // says: the caller opened it so.
 constexpr char kNoFeatures[] = "the database was opened as a keyframe table, without features";
@@ -1253,12 +1252,8 @@ Database Database::Load(const std::string& dir, const LoadOptions& options) {
       }
       PLACEDB_THROW_NOT_FOUND("no database at ", dir, " (", kManifestFile, " is missing)");
     }
-    nlohmann::json manifest;
-    try {
-      manifest = nlohmann::json::parse(text);
-    } catch (const nlohmann::json::exception& e) {
-      PLACEDB_THROW_CORRUPT(manifest_path, ": not valid JSON (", e.what(), ")");
-    }
+    nlohmann::json manifest =
+        ParseJson(text, manifest_path, JsonOrigin::kDatabaseFile, kMaxManifestBytes);
     if (!manifest.is_object() || !manifest.contains("format") ||
         manifest["format"] != "placedb-database") {
       PLACEDB_THROW_CORRUPT(manifest_path, ": not a placedb database manifest");

@@ -884,6 +884,55 @@ TEST_F(DatabaseFileTest, ManifestNotJson) {
   EXPECT_EQ(LoadVerified(Dir()).size(), 3u);
 }
 
+// The mutation family of manifest nesting (issue 46): unknown keys holding
+// arrays and objects nested to every depth up to past the limit, at the top
+// and inside the known objects, with brackets inside strings too. A
+// manifest within the limits loads, keeps its unknown keys and dumps and
+// copies safely; one nested deeper than kMaxJsonDepth, or larger than
+// kMaxManifestBytes, is CorruptDatabase, never a crash or a long walk.
+TEST_F(DatabaseFileTest, MutatedManifestNesting) {
+  std::mt19937_64 rng(20261246);
+  const std::string text = manifest_.dump();
+  int loaded = 0, refused = 0;
+  for (int i = 0; i < 300; ++i) {
+    const int depth = i < 200   ? 1 + static_cast<int>(rng() % 80)
+                      : i < 290 ? static_cast<int>(rng() % 5000)
+                                : 100000 + static_cast<int>(rng() % 1000000);
+    std::string open, close;
+    for (int d = 0; d < depth; ++d) {
+      const bool object = rng() % 3 == 0;
+      open += object ? "{\"k\":" : "[";
+      close += object ? "}" : "]";
+    }
+    std::reverse(close.begin(), close.end());
+    const std::string value = open + (rng() % 2 ? "\"[{\\\"]}\"" : "0") + close;
+    // Inside "counts" (one level down) or at the top.
+    const bool inside = rng() % 2;
+    std::string mutated = text;
+    const size_t at = inside ? mutated.find("\"counts\":{") + 10 : 1;
+    mutated.insert(at, "\"x\":" + value + ",");
+    WriteBytes(Dir() + "/manifest.json", mutated);
+    const int levels = depth + 1 + (inside ? 1 : 0);  // the manifest's own object(s) too
+    try {
+      const Database db = LoadVerified(Dir());
+      ++loaded;
+      EXPECT_LE(levels, kMaxJsonDepth) << depth;
+      EXPECT_TRUE((inside ? db.info()["counts"] : db.info()).contains("x"));
+      const nlohmann::json copy = db.info();
+      EXPECT_FALSE(DumpJson(copy).empty());
+    } catch (const CorruptDatabase& e) {
+      ++refused;
+      EXPECT_GT(levels, kMaxJsonDepth) << e.what();
+      const std::string what = e.what();
+      EXPECT_TRUE(what.find("nested deeper than 64 levels") != std::string::npos ||
+                  what.find("larger than") != std::string::npos)
+          << what;
+    }
+  }
+  EXPECT_GT(loaded, 100);
+  EXPECT_GT(refused, 100);
+}
+
 // The defects found with hostile input, each with its regression test:
 // values that are impossible although every checksum is right.
 TEST_F(DatabaseFileTest, ImpossibleValuesWithValidChecksums) {

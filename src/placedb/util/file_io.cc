@@ -1,17 +1,17 @@
 #include "placedb/util/file_io.h"
 
+#include <dirent.h>
 #include <fcntl.h>
+#include <signal.h>
 #include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include <signal.h>
-
 #include <algorithm>
 #include <atomic>
 #include <cerrno>
-#include <filesystem>
 #include <cstring>
+#include <filesystem>
 
 #include "placedb/util/mapped_file.h"
 
@@ -144,14 +144,11 @@ bool RemoveRegularFile(const std::string& path) {
   return ::unlink(path.c_str()) == 0;
 }
 
-size_t SweepTempFiles(const std::string& dir) {
+size_t SweepTempFiles(const DirectoryHandle& dir) {
   size_t removed = 0;
-  std::error_code ec;
-  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+  for (const std::string& name : dir.List()) {
     long pid = 0;
-    const std::string name = it->path().filename().string();
-    if (IsTempFileName(name, &pid) && ProcessIsGone(pid) && RemoveRegularFile(it->path().string()))
-      ++removed;
+    if (IsTempFileName(name, &pid) && ProcessIsGone(pid) && dir.RemoveRegularFile(name)) ++removed;
   }
   return removed;
 }
@@ -285,6 +282,65 @@ DirectoryHandle::~DirectoryHandle() {
   if (fd_ >= 0) ::close(fd_);
 }
 
+std::unique_ptr<DirectoryHandle> DirectoryHandle::OpenChild(const DirectoryHandle& parent,
+                                                            const std::string& name) {
+  const std::string shown = (fs::path(parent.path_) / name).string();
+  const int fd =
+      ::openat(parent.fd_, name.c_str(), O_RDONLY | O_DIRECTORY | O_NOFOLLOW | O_CLOEXEC);
+  if (fd < 0) {
+    // ELOOP: a symlink; ENOTDIR: something else.
+    if (errno == ENOENT || errno == ELOOP || errno == ENOTDIR) return nullptr;
+    PLACEDB_THROW_IO("cannot open directory ", shown, ": ", std::strerror(errno));
+  }
+  return std::unique_ptr<DirectoryHandle>(new DirectoryHandle(shown, fd));
+}
+
+std::vector<std::string> DirectoryHandle::List() const {
+  // fdopendir takes the descriptor over: give it a copy of ours, rewound.
+  const int fd = ::openat(fd_, ".", O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) PLACEDB_THROW_IO("cannot list ", path_, ": ", std::strerror(errno));
+  DIR* d = ::fdopendir(fd);
+  if (d == nullptr) {
+    const int err = errno;
+    ::close(fd);
+    PLACEDB_THROW_IO("cannot list ", path_, ": ", std::strerror(err));
+  }
+  std::vector<std::string> names;
+  while (const struct dirent* e = ::readdir(d)) {
+    const std::string name = e->d_name;
+    if (name != "." && name != "..") names.push_back(name);
+  }
+  ::closedir(d);
+  return names;
+}
+
+void DirectoryHandle::WriteFileAtomic(const std::string& name, const std::string& data) const {
+  PLACEDB_CHECK(!name.empty() && name.find('/') == std::string::npos,
+                "WriteFileAtomic takes a name inside the directory");
+  const std::string shown = (fs::path(path_) / name).string();
+  const std::string tmp = TempPathFor(name);
+  const int fd = ::openat(fd_, tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+  if (fd < 0) PLACEDB_THROW_IO("cannot create a file in ", path_, ": ", std::strerror(errno));
+  auto fail = [&](const char* what, int err, bool open) {
+    if (open) ::close(fd);
+    ::unlinkat(fd_, tmp.c_str(), 0);
+    PLACEDB_THROW_IO("cannot ", what, " ", shown, ": ", std::strerror(err));
+  };
+  if (!WriteAll(fd, data.data(), data.size())) fail("write", errno, true);
+  if (::fsync(fd) != 0) fail("fsync", errno, true);
+  if (::close(fd) != 0 && errno != EINTR) fail("write", errno, false);
+  if (::renameat(fd_, tmp.c_str(), fd_, name.c_str()) != 0) fail("write", errno, false);
+  ::fsync(fd_);
+}
+
+bool DirectoryHandle::RemoveRegularFile(const std::string& name) const {
+  if (name.empty() || name.find('/') != std::string::npos) return false;
+  struct stat st;
+  if (::fstatat(fd_, name.c_str(), &st, AT_SYMLINK_NOFOLLOW) != 0 || !S_ISREG(st.st_mode))
+    return false;
+  return ::unlinkat(fd_, name.c_str(), 0) == 0;
+}
+
 bool DirectoryHandle::ReadFile(const std::string& name, std::string* out, size_t max_bytes) const {
   const std::string shown = (fs::path(path_) / name).string();
   const int fd = ::openat(fd_, name.c_str(), O_RDONLY | O_CLOEXEC);
@@ -305,7 +361,8 @@ bool DirectoryHandle::ReadFile(const std::string& name, std::string* out, size_t
     if (n == 0) break;
     if (out->size() + static_cast<size_t>(n) > max_bytes) {
       ::close(fd);
-      PLACEDB_THROW_CORRUPT(shown, " is larger than ", max_bytes, " bytes");
+      PLACEDB_THROW_CORRUPT(shown, " is larger than ", max_bytes,
+                            " bytes, the most placedb reads of it (a damaged or foreign file)");
     }
     out->append(buf, static_cast<size_t>(n));
   }
@@ -381,8 +438,8 @@ bool HostIsLittleEndian() {
 bool IsPlainFileName(const std::string& name) {
   if (name.empty() || name.size() > 255 || name[0] == '.') return false;
   return std::all_of(name.begin(), name.end(), [](char c) {
-    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
-           c == '.' || c == '_' || c == '-';
+    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '.' ||
+           c == '_' || c == '-';
   });
 }
 

@@ -62,10 +62,6 @@ bool ProcessIsGone(long pid);
 // followed, nor anything else); false when it was not removed. Errors are
 // ignored (best effort, for sweeping).
 bool RemoveRegularFile(const std::string& path);
-// Removes, directly inside `dir`, the temporary files (IsTempFileName) of
-// processes that are gone; returns how many. Errors are ignored: sweeping is
-// best effort and never fails the caller.
-size_t SweepTempFiles(const std::string& dir);
 
 // A file written through a buffer into a temporary sibling (TempPathFor) and
 // moved to `path` by Commit (fsync, rename, fsync of the directory): a crash
@@ -103,6 +99,12 @@ class AtomicFileWriter {
 };
 
 class MappedFile;
+class DirectoryHandle;
+
+// Removes, directly inside `dir`, the temporary files (IsTempFileName) of
+// processes that are gone; returns how many. Errors are ignored: sweeping is
+// best effort and never fails the caller.
+size_t SweepTempFiles(const DirectoryHandle& dir);
 
 // A directory opened once: files read relative to it come from the same
 // directory even if its path is renamed or replaced meanwhile.
@@ -115,7 +117,26 @@ class DirectoryHandle {
   DirectoryHandle(const DirectoryHandle&) = delete;
   DirectoryHandle& operator=(const DirectoryHandle&) = delete;
 
+  // The directory `name` directly inside `parent`, opened without following
+  // a symlink: nullptr when `name` is missing, a symlink or not a directory
+  // (so a writer never reaches outside the folder it owns through a link);
+  // other errors throw IoError.
+  static std::unique_ptr<DirectoryHandle> OpenChild(const DirectoryHandle& parent,
+                                                    const std::string& name);
+
   const std::string& path() const { return path_; }
+  // The names directly inside, "." and ".." left out, in no order. Errors
+  // throw IoError.
+  std::vector<std::string> List() const;
+  // Removes `name` when it is a regular file directly inside (never a
+  // symlink, which is not followed, nor anything else); false when it was
+  // not removed. Errors are ignored (best effort, for sweeping).
+  bool RemoveRegularFile(const std::string& name) const;
+  // Writes `data` to the file `name` directly inside, crash-safely as
+  // WriteFileAtomic does (a temporary sibling, fsync, renameat, fsync of this
+  // directory), all relative to this directory's descriptor: a symlink at
+  // `name` is replaced, never followed. A failed write throws IoError.
+  void WriteFileAtomic(const std::string& name, const std::string& data) const;
   // The whole file `name`, or false when it does not exist (other errors
   // throw IoError). At most `max_bytes` are accepted: a larger file is
   // CorruptDatabase (this reads the small files of a database: manifests).
@@ -126,6 +147,7 @@ class DirectoryHandle {
   std::shared_ptr<const MappedFile> MapFile(const std::string& name) const;
 
  private:
+  DirectoryHandle(std::string path, int fd) : path_(std::move(path)), fd_(fd) {}
   std::string path_;
   int fd_ = -1;
 };

@@ -170,10 +170,36 @@ TEST(FileIoTest, TempFileNamesAndSweep) {
   WriteFileAtomic(tmp.Path("a.json.tmp.99999999.1"), "debris");
   WriteFileAtomic(tmp.Path("a.json.tmp." + std::to_string(::getpid()) + ".5"), "live");
   WriteFileAtomic(tmp.Path("a.json"), "kept");
-  EXPECT_EQ(SweepTempFiles(tmp.Path("")), 1u);
+  EXPECT_EQ(SweepTempFiles(DirectoryHandle(tmp.Path(""))), 1u);
   EXPECT_FALSE(fs::exists(tmp.Path("a.json.tmp.99999999.1")));
   EXPECT_TRUE(fs::exists(tmp.Path("a.json")));
-  EXPECT_EQ(SweepTempFiles(tmp.Path("missing")), 0u);
+}
+
+// A writer's folder handle never reaches through a symlink: a child that is
+// a link is not opened, a link inside is not followed by a removal, and an
+// atomic write replaces a link instead of writing through it.
+TEST(FileIoTest, DirectoryHandleNeverFollowsSymlinks) {
+  testing_util::TempDir tmp;
+  fs::create_directories(tmp.Path("outside"));
+  fs::create_directories(tmp.Path("db/real"));
+  WriteFileAtomic(tmp.Path("outside/mine.png"), "mine");
+  fs::create_directory_symlink(tmp.Path("outside"), tmp.Path("db/images"));
+  fs::create_symlink(tmp.Path("outside/mine.png"), tmp.Path("db/real/link.png"));
+  const DirectoryHandle db(tmp.Path("db"));
+  EXPECT_EQ(DirectoryHandle::OpenChild(db, "images"), nullptr);
+  EXPECT_EQ(DirectoryHandle::OpenChild(db, "missing"), nullptr);
+  const std::unique_ptr<DirectoryHandle> real = DirectoryHandle::OpenChild(db, "real");
+  ASSERT_NE(real, nullptr);
+  EXPECT_EQ(real->List(), std::vector<std::string>{"link.png"});
+  EXPECT_FALSE(real->RemoveRegularFile("link.png"));
+  EXPECT_FALSE(db.RemoveRegularFile("images"));
+  EXPECT_FALSE(db.RemoveRegularFile("real/link.png"));  // names only, no paths
+  real->WriteFileAtomic("link.png", "new");
+  EXPECT_EQ(ReadFileToString(tmp.Path("outside/mine.png")), "mine");
+  EXPECT_EQ(ReadFileToString(tmp.Path("db/real/link.png")), "new");
+  EXPECT_FALSE(fs::is_symlink(tmp.Path("db/real/link.png")));
+  EXPECT_TRUE(real->RemoveRegularFile("link.png"));
+  EXPECT_TRUE(real->List().empty());
 }
 
 // One writer per folder: a second lock on it is refused while the first is

@@ -6,6 +6,48 @@
 
 namespace placedb {
 
+namespace {
+[[noreturn]] void FailJson(JsonOrigin origin, const std::string& message) {
+  if (origin == JsonOrigin::kDatabaseFile) PLACEDB_THROW_CORRUPT(message);
+  PLACEDB_THROW_INVALID(message);
+}
+}  // namespace
+
+nlohmann::json ParseJson(std::string_view text, const std::string& where, JsonOrigin origin,
+                         size_t max_bytes) {
+  if (text.size() > max_bytes) {
+    FailJson(origin, where + ": " + std::to_string(text.size()) + " bytes of JSON, more than the " +
+                         std::to_string(max_bytes) + " allowed");
+  }
+  // The nesting, outside strings (a string's brackets are text).
+  int depth = 0;
+  bool in_string = false;
+  for (size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (in_string) {
+      if (c == '\\') {
+        ++i;
+      } else if (c == '"') {
+        in_string = false;
+      }
+    } else if (c == '"') {
+      in_string = true;
+    } else if (c == '[' || c == '{') {
+      if (++depth > kMaxJsonDepth) {
+        FailJson(origin, where + ": JSON nested deeper than " + std::to_string(kMaxJsonDepth) +
+                             " levels (at byte " + std::to_string(i) + ")");
+      }
+    } else if (c == ']' || c == '}') {
+      --depth;
+    }
+  }
+  try {
+    return nlohmann::json::parse(text);
+  } catch (const nlohmann::json::exception& e) {
+    FailJson(origin, where + ": not valid JSON (" + e.what() + ")");
+  }
+}
+
 JsonReader::JsonReader(const nlohmann::json& j, std::string where, JsonOrigin origin)
     : j_(j), where_(std::move(where)), origin_(origin) {
   if (!j_.is_object()) Fail("", "is not a JSON object");

@@ -5,9 +5,11 @@
 // 2147483648 is not an int, 1.5 is not an integer).
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <string_view>
 
 namespace placedb {
 
@@ -16,6 +18,23 @@ enum class JsonOrigin {
   kCaller,        // InvalidArgument: a result received over the wire, a caller's JSON
   kDatabaseFile,  // CorruptDatabase: a manifest (or another file placedb wrote)
 };
+
+// The limits of JSON text read from outside (ParseJson). Nothing placedb
+// writes nests deeper than 8 levels; a deeper text is hostile or damaged, and
+// refusing it before nlohmann builds it keeps every later walk (dump, copy,
+// the Python conversion, all recursive) shallow.
+constexpr int kMaxJsonDepth = 64;
+// A database's manifest (settings, counts, names) is a few KiB.
+constexpr size_t kMaxManifestBytes = size_t{1} << 20;
+
+// `text` parsed as JSON, refusing text longer than `max_bytes` or nesting
+// arrays and objects deeper than kMaxJsonDepth (checked by one scan of the
+// text before it is parsed: no recursion, no allocation) and text that is not
+// JSON; the error is of `origin` (CorruptDatabase for a file placedb wrote,
+// else InvalidArgument) and names `where`. Every JSON read from a file or a
+// message goes through it.
+nlohmann::json ParseJson(std::string_view text, const std::string& where, JsonOrigin origin,
+                         size_t max_bytes);
 
 class JsonReader {
  public:

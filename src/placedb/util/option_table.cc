@@ -78,7 +78,7 @@ std::string OutOfRange(const std::string& name, const std::string& range, const 
 
 namespace {
 [[noreturn]] void WrongKind(const std::string& name, const char* wanted, const OptionValue& v) {
-  static const char* const kHeld[] = {"a bool",   "a whole number", "a whole number", "a number",
+  static const char* const kHeld[] = {"a bool",   "a whole number", "a whole number",   "a number",
                                       "a string", "a list",         "a list of numbers"};
   PLACEDB_THROW_INVALID("`", name, "` takes ", wanted, ", not ", kHeld[v.index()]);
 }
@@ -214,7 +214,10 @@ bool ParseDouble(const std::string& text, double* out) {
   char* end = nullptr;
   errno = 0;
   const double v = std::strtod(text.c_str(), &end);
-  if (end != text.c_str() + text.size() || errno == ERANGE) return false;
+  if (end != text.c_str() + text.size()) return false;
+  // ERANGE is an overflow (±HUGE_VAL: refused) or an underflow (a subnormal
+  // or 0, such as 1e-320: a number all the same, which the range checks).
+  if (errno == ERANGE && std::isinf(v)) return false;
   *out = v;
   return true;
 }
@@ -251,8 +254,8 @@ void OptionTableBase::SetText(void* options, const std::string& name,
                                       [](char c) { return c >= '0' && c <= '9'; }) &&
                           text != "-";
       if (!digits) {
-        PLACEDB_THROW_INVALID("`", n, "` takes a whole number in ", e.field.range, " (got '",
-                              text, "')");
+        PLACEDB_THROW_INVALID("`", n, "` takes a whole number in ", e.field.range, " (got '", text,
+                              "')");
       }
       errno = 0;
       const long long v = std::strtoll(text.c_str(), nullptr, 10);
@@ -260,9 +263,8 @@ void OptionTableBase::SetText(void* options, const std::string& name,
       return e.set(options, static_cast<int64_t>(v));
     }
     case OptionKind::kUint64: {
-      const bool digits = !text.empty() && std::all_of(text.begin(), text.end(), [](char c) {
-        return c >= '0' && c <= '9';
-      });
+      const bool digits = !text.empty() && std::all_of(text.begin(), text.end(),
+                                                       [](char c) { return c >= '0' && c <= '9'; });
       if (!digits) {
         PLACEDB_THROW_INVALID("`", n, "` takes a whole number in [0, 2^64) (got '", text, "')");
       }
@@ -274,8 +276,7 @@ void OptionTableBase::SetText(void* options, const std::string& name,
     case OptionKind::kDouble: {
       double v = 0.0;
       if (!ParseDouble(text, &v)) {
-        PLACEDB_THROW_INVALID("`", n, "` takes a number in ", e.field.range, " (got '", text,
-                              "')");
+        PLACEDB_THROW_INVALID("`", n, "` takes a number in ", e.field.range, " (got '", text, "')");
       }
       return e.set(options, v);
     }
@@ -335,16 +336,18 @@ std::string OptionTableBase::CheckLayout() const {
   size_t end = 0;
   for (const Placed& p : placed) {
     if (p.offset > round_up(end, p.align)) {
-      return fmt::format("{}: bytes [{}, {}) of the struct are no option's member (a member "
-                         "missing from the table?)",
-                         what_, end, p.offset);
+      return fmt::format(
+          "{}: bytes [{}, {}) of the struct are no option's member (a member "
+          "missing from the table?)",
+          what_, end, p.offset);
     }
     end = std::max(end, p.offset + p.bytes);
   }
   if (round_up(end, struct_align_) != struct_bytes_) {
-    return fmt::format("{}: the options' members end at byte {} of a {}-byte struct (a member "
-                       "missing from the table?)",
-                       what_, end, struct_bytes_);
+    return fmt::format(
+        "{}: the options' members end at byte {} of a {}-byte struct (a member "
+        "missing from the table?)",
+        what_, end, struct_bytes_);
   }
   return "";
 }

@@ -59,19 +59,24 @@ class TempDir {
   static inline int counter_ = 0;  // several directories in one test
 };
 
+#if defined(__has_feature)
+#define PLACEDB_TESTING_HAS_FEATURE(x) __has_feature(x)
+#else
+#define PLACEDB_TESTING_HAS_FEATURE(x) 0
+#endif
 // True in a ThreadSanitizer build, where a test that forks a multi-threaded
 // process cannot run (TSan does not support threads after such a fork).
-constexpr bool kThreadSanitizer =
-#if defined(__SANITIZE_THREAD__)
-    true;
-#elif defined(__has_feature)
-#if __has_feature(thread_sanitizer)
-    true;
+#if defined(__SANITIZE_THREAD__) || PLACEDB_TESTING_HAS_FEATURE(thread_sanitizer)
+constexpr bool kThreadSanitizer = true;
 #else
-    false;
+constexpr bool kThreadSanitizer = false;
 #endif
+// True in an AddressSanitizer build (whose shadow memory takes more address
+// space than a test's limit on it allows).
+#if defined(__SANITIZE_ADDRESS__) || PLACEDB_TESTING_HAS_FEATURE(address_sanitizer)
+constexpr bool kAddressSanitizer = true;
 #else
-    false;
+constexpr bool kAddressSanitizer = false;
 #endif
 
 // Under ThreadSanitizer, OpenCV runs its functions on the calling thread:

@@ -4,6 +4,7 @@
 #include <sensor_msgs/image_encodings.h>
 
 #include "placedb/util/check.h"
+#include "placedb/util/file_io.h"
 
 namespace placedb {
 namespace enc = sensor_msgs::image_encodings;
@@ -17,7 +18,7 @@ cv::Mat ImageMessageToBgr(const sensor_msgs::Image& image) {
   } else if (image.encoding == enc::BGRA8 || image.encoding == enc::RGBA8) {
     channels = 4;
   } else {
-    PLACEDB_THROW_INVALID("image encoding '", image.encoding.substr(0, 32),
+    PLACEDB_THROW_INVALID("image encoding '", EscapeForTerminal(image.encoding.substr(0, 32)),
                           "' is not mono8, bgr8, rgb8, bgra8 or rgba8");
   }
   if (image.width < 1 || image.height < 1 || image.width > 16384 || image.height > 16384) {
