@@ -663,7 +663,8 @@ class NothingLostTest(unittest.TestCase):
         db_dir = os.path.join(self.tmp, "db")
         placedb.build(db_dir, images=IMAGES, last=3)
         path = os.path.join(db_dir, "manifest.json")
-        text = open(path).read()
+        with open(path) as f:
+            text = f.read()
         for depth in (100000, 1000000):
             with open(path, "w") as f:
                 f.write('{"x":' + "[" * depth + "]" * depth + "," + text[1:])
