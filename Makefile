@@ -3,7 +3,8 @@
 #   make test   install what is needed, build once (Release, the build users
 #               get), run the whole suite
 # and the sanitizer passes CI runs after it:
-#   make check  the whole suite under AddressSanitizer + UndefinedBehaviorSanitizer,
+#   make check  the whole suite under AddressSanitizer (+ UndefinedBehaviorSanitizer on
+#               the libraries),
 #               then the threaded tests under ThreadSanitizer
 BUILD_DIR ?= build
 JOBS ?= $(shell nproc 2>/dev/null || echo 2)

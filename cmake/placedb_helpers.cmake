@@ -13,7 +13,8 @@ function(placedb_add_library)
     $<BUILD_INTERFACE:${PROJECT_BINARY_DIR}/include>
     $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
   target_link_libraries(${ARG_NAME} PUBLIC ${ARG_DEPS})
-  target_compile_options(${ARG_NAME} PRIVATE -Wall -Wextra -Wno-unused-parameter)
+  target_compile_options(${ARG_NAME} PRIVATE -Wall -Wextra -Wno-unused-parameter
+    ${PLACEDB_UBSAN_OPTIONS})
   set_target_properties(${ARG_NAME} PROPERTIES POSITION_INDEPENDENT_CODE ON)
   add_library(placedb::${ARG_NAME} ALIAS ${ARG_NAME})
   if(ARG_INTERNAL)
@@ -25,7 +26,7 @@ function(placedb_add_library)
   set(PLACEDB_LIBRARIES ${PLACEDB_LIBRARIES} ${ARG_NAME} CACHE INTERNAL "")
 endfunction()
 
-# placedb_add_test(NAME name SRCS a_test.cc DEPS lib1 [LABELS l]
+# placedb_add_test(NAME name SRCS a_test.cc DEPS lib1 [LABELS l] [COST seconds]
 #                  [SPLIT part_name filter [part_name filter ...]])
 #   A GoogleTest executable registered with CTest; PLACEDB_DATA_DIR points at
 #   the sample data in the repository. SPLIT registers some of its tests
@@ -35,7 +36,7 @@ function(placedb_add_test)
   if(NOT PLACEDB_BUILD_TESTS)
     return()
   endif()
-  cmake_parse_arguments(ARG "" "NAME" "SRCS;DEPS;LABELS;SPLIT" ${ARGN})
+  cmake_parse_arguments(ARG "" "NAME;COST" "SRCS;DEPS;LABELS;SPLIT" ${ARGN})
   add_executable(${ARG_NAME} ${ARG_SRCS})
   target_link_libraries(${ARG_NAME} PRIVATE ${ARG_DEPS} GTest::gtest GTest::gtest_main)
   target_compile_definitions(${ARG_NAME} PRIVATE PLACEDB_DATA_DIR="${PLACEDB_DATA_DIR}")
@@ -62,6 +63,11 @@ function(placedb_add_test)
     add_test(NAME ${ARG_NAME} COMMAND ${ARG_NAME})
   endif()
   set_tests_properties(${tests} PROPERTIES TIMEOUT 900)
+  if(ARG_COST)
+    # A fresh tree has no timings: CTest starts the costliest first, so that
+    # a long test is not the last one left running on one core.
+    set_tests_properties(${tests} PROPERTIES COST ${ARG_COST})
+  endif()
   if(ARG_LABELS)
     set_tests_properties(${tests} PROPERTIES LABELS "${ARG_LABELS}")
   endif()
