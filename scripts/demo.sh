@@ -114,7 +114,37 @@ for size in $SIZES; do
     --upscaled-fast-threshold 0 --overwrite --quiet >/dev/null 2>&1
   evalq "$db.fast20" "$HARD/$size.fast20.json"
 done
-python3 scripts/hard_places.py "$HARD" --readme README.md
+
+echo
+echo "== 7b. places that change: the whole-image channels and the sequence over the whole map, alone and"
+echo "   together, on the Nordland slice (64x32: 400 summer keyframes, the 400 winter frames as queries)"
+echo "   and on the loop (database 1-40, queries 41-84); written into README.md (\"Places that change\")."
+CHANGE="$OUT/places_that_change"
+mkdir -p "$CHANGE"
+NORD=data/nordland64_slice
+for name in nordland rtabmap; do
+  if [[ $name == nordland ]]; then
+    map=(--images "$NORD/summer"); queries=(--images "$NORD/winter" --truth "$NORD/ground_truth.csv")
+  else
+    map=(--images "$DATA/images" --last 40); queries=(--images "$DATA/images" --first 41 --truth "$TRUTH")
+  fi
+  for kind in thumbnail hog; do
+    "$PLACEDB" build "${map[@]}" --whole-image-kind "$kind" --out "$CHANGE/db_${name}_$kind" \
+      --overwrite --quiet >/dev/null 2>&1
+  done
+  change() {
+    "$PLACEDB" eval --db "$CHANGE/db_${name}_$1" "${queries[@]}" --all --quiet --sequence "${@:3}" \
+      --json "$CHANGE/$name.$2.json" >/dev/null 2>&1
+  }
+  change thumbnail thumb
+  change thumbnail thumb.w150 --whole-image-weight 150
+  change hog hog.w150 --whole-image-weight 150
+  change thumbnail thumb.seq10 --sequence-whole-image-weight 10
+  change hog hog.seq10 --sequence-whole-image-weight 10
+  change hog hog.seq10v --sequence-whole-image-weight 10 --sequence-min-velocity 0.8 \
+    --sequence-max-velocity 1.2 --sequence-velocity-steps 5
+done
+python3 scripts/hard_places.py "$HARD" --change "$CHANGE" --readme README.md
 
 echo
 echo "== 8. matching speed: placedb vs the paper's OpenCV BFMatcher loop"

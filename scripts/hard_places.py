@@ -1,14 +1,21 @@
 #!/usr/bin/env python3
-"""The "hard places" table of `make demo` (scripts/demo.sh, step 7): the
-defaults of small frames, the whole-image channel and sequence evidence,
-measured on data/rtabmap_loop at several frame sizes. Prints the table and,
-with --readme FILE, writes it between the README's markers
-<!-- make demo: hard places --> and <!-- /make demo -->.
+"""The tables of `make demo` (scripts/demo.sh) that choose defaults.
 
-Usage: hard_places.py DIR [--readme README.md]
-DIR holds <size>.fast20.json, <size>.json (eval --sequence, the defaults),
+"hard places" (step 7): small frames, the whole-image channel and sequence
+evidence, measured on data/rtabmap_loop at several frame sizes. DIR holds
+<size>.fast20.json, <size>.json (eval --sequence, the defaults),
 <size>.len5.json (--sequence-length 5) and <size>.whole.json
-(--whole-image-weight 10) for each size of DIR/sizes.txt."""
+(--whole-image-weight 10) for each size of DIR/sizes.txt.
+
+"places that change" (step 7b, --change CHANGE_DIR): each channel of the
+whole-image descriptor and the sequence search, alone and together, on the
+Nordland slice (summer map, winter queries) and on data/rtabmap_loop. CHANGE_DIR
+holds <data>.<setting>.json for each data set and setting of SETTINGS below.
+
+Prints the tables and, with --readme FILE, writes each between the README's
+markers <!-- make demo: NAME --> and <!-- /make demo -->.
+
+Usage: hard_places.py DIR [--change CHANGE_DIR] [--readme README.md]"""
 import json
 import os
 import sys
@@ -21,11 +28,17 @@ def load(path):
 
 def main():
     args = sys.argv[1:]
-    readme = None
-    if "--readme" in args:
-        i = args.index("--readme")
-        readme = args[i + 1]
-        del args[i:i + 2]
+    readme = change = None
+    for flag in ("--readme", "--change"):
+        if flag in args:
+            i = args.index(flag)
+            if i + 1 >= len(args):
+                sys.exit(__doc__)
+            if flag == "--readme":
+                readme = args[i + 1]
+            else:
+                change = args[i + 1]
+            del args[i:i + 2]
     if len(args) != 1:
         sys.exit(__doc__)
     d = args[0]
@@ -54,20 +67,59 @@ def main():
             "R@P=1 single / sequence", "sequence ms per frame"]
     table = ["| " + " | ".join(head) + " |", "| " + " | ".join("---" for _ in head) + " |"]
     table += ["| " + " | ".join(r) + " |" for r in rows]
-    text = "\n".join(table)
-    print(text)
-    if readme:
-        with open(readme) as f:
-            s = f.read()
-        begin, end = "<!-- make demo: hard places -->", "<!-- /make demo -->"
-        a = s.find(begin)
-        b = s.find(end, a)
-        if a < 0 or b < 0:
-            sys.exit(f"hard_places: {readme} has no {begin} ... {end} block")
-        s = s[:a + len(begin)] + "\n" + text + "\n" + s[b:]
-        with open(readme, "w") as f:
-            f.write(s)
+    tables = {"hard places": "\n".join(table)}
+    if change:
+        tables["places that change"] = change_table(change)
+    for name, text in tables.items():
+        print(text)
+        if readme:
+            write_block(readme, name, text)
 
+
+def write_block(readme, name, text):
+    """Writes `text` between <!-- make demo: NAME --> and the next <!-- /make demo -->."""
+    with open(readme) as f:
+        s = f.read()
+    begin, end = f"<!-- make demo: {name} -->", "<!-- /make demo -->"
+    a = s.find(begin)
+    b = s.find(end, a)
+    if a < 0 or b < 0:
+        sys.exit(f"hard_places: {readme} has no {begin} ... {end} block")
+    s = s[:a + len(begin)] + "\n" + text + "\n" + s[b:]
+    with open(readme, "w") as f:
+        f.write(s)
+
+
+# The settings of step 7b: file suffix, what the row says. Each eval JSON
+# has the single-frame answers and the sequence's (eval --sequence).
+SETTINGS = [
+    ("thumb", "local features (the defaults; thumbnail channel weight 0)"),
+    ("thumb.w150", "+ thumbnail, `--whole-image-weight 150`"),
+    ("hog.w150", "+ HOG (`--whole-image-kind hog` at build), `--whole-image-weight 150`"),
+    ("thumb.seq10", "sequence over the whole map, thumbnail, `--sequence-whole-image-weight 10`"),
+    ("hog.seq10", "sequence over the whole map, HOG, `--sequence-whole-image-weight 10`"),
+    ("hog.seq10v", "the same, SeqSLAM's velocities (`--sequence-min/max-velocity 0.8/1.2`, 5 steps)"),
+]
+DATASETS = [("nordland", "Nordland slice, winter vs summer"), ("rtabmap", "rtabmap_loop 41-84 vs 1-40")]
+
+
+def change_table(d):
+    head = ["setting"]
+    for _, label in DATASETS:
+        head += [f"{label}: single R@1", "sequence R@1", "PR AUC single / sequence"]
+    rows = []
+    for suffix, label in SETTINGS:
+        row = [label]
+        for name, _ in DATASETS:
+            e = load(os.path.join(d, f"{name}.{suffix}.json"))
+            single = e["single_frame"]
+            row += [f"{single['recall_at_1']:.3f}", f"{e['recall_at_1']:.3f}",
+                    f"{single['average_precision']:.3f} / "
+                    f"{e['precision_recall']['average_precision']:.3f}"]
+        rows.append(row)
+    table = ["| " + " | ".join(head) + " |", "| " + " | ".join("---" for _ in head) + " |"]
+    table += ["| " + " | ".join(r) + " |" for r in rows]
+    return "\n".join(table)
 
 if __name__ == "__main__":
     main()

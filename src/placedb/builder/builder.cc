@@ -20,7 +20,9 @@
 #include "placedb/feature/spread.h"
 #include "placedb/feature/whole_image.h"
 #include "placedb/image/resize.h"
+#include "placedb/feature/whole_image_model.h"
 #include "placedb/storage/folder.h"
+#include "placedb/storage/whole_image_model_file.h"
 #include "placedb/util/check.h"
 #include "placedb/util/checksum.h"
 #include "placedb/util/file_io.h"
@@ -130,7 +132,7 @@ ProcessedFrame ProcessFrame(const Frame& frame, const cv::Mat& image, const Buil
   if (!options.features.whole_image.enabled) {
     out.features.whole_image.release();
   } else if (!frame_as_given || out.features.whole_image.empty()) {
-    out.features.whole_image = ComputeWholeImageDescriptor(image, options.features.whole_image);
+    out.features.whole_image = extractor.WholeImage(image);
   }
   return out;
 }
@@ -329,9 +331,57 @@ IndexFiles WriteBowIndex(const Database& db, const BuildOptions& options, const 
 
 }  // namespace
 
-BuildReport BuildDatabase(const std::vector<Frame>& frames, const BuildOptions& options,
+namespace {
+
+// The options as the build uses and records them: a HOG whole-image channel
+// without a thumbnail height gets the one that keeps the first readable
+// frame's aspect.
+BuildOptions ResolveOptions(const BuildOptions& given, const std::vector<Frame>& frames) {
+  BuildOptions options = given;
+  WholeImageOptions& w = options.features.whole_image;
+  if (!w.enabled || w.kind != WholeImageKind::kHog || w.hog_height != 0) return options;
+  for (const Frame& f : frames) {
+    const cv::Mat image = LoadFrameImage(f);
+    if (image.empty()) continue;
+    w.hog_height = HogHeightForFrame(w.hog_width, image.size());
+    return options;
+  }
+  w.hog_height = HogHeightForFrame(w.hog_width, cv::Size(4, 3));
+  return options;
+}
+
+// Fits the HOG channel's model on the keyframes' raw rows and replaces each
+// with its projection; writes the model into `dir`. Returns false (the
+// channel left out, said so) when fewer than 2 keyframes were read.
+bool FitWholeImageModel(std::vector<std::optional<ProcessedFrame>>* results,
+                        const WholeImageOptions& w, const fs::path& dir, ThreadPool* pool) {
+  std::vector<cv::Mat> raw;
+  for (const auto& r : *results) {
+    if (r) raw.push_back(r->features.whole_image);
+  }
+  if (raw.size() < 2) {
+    spdlog::warn("the HOG whole-image channel needs 2 or more keyframes: the database has none");
+    for (auto& r : *results) {
+      if (r) r->features.whole_image.release();
+    }
+    return false;
+  }
+  const WholeImageModel model = WholeImageModel::Fit(raw, w.hog_width, w.hog_height, w.hog_dims);
+  raw.clear();
+  pool->ParallelFor(results->size(), [&](size_t i) {
+    std::optional<ProcessedFrame>& r = (*results)[i];
+    if (r) r->features.whole_image = model.Project(r->features.whole_image);
+  });
+  SaveWholeImageModel(model, (dir / kWholeImageModelFile).string());
+  return true;
+}
+
+}  // namespace
+
+BuildReport BuildDatabase(const std::vector<Frame>& frames, const BuildOptions& given,
                           const std::string& out_dir, const std::string& source_description) {
-  PLACEDB_CHECK_OPTIONS(options);
+  PLACEDB_CHECK_OPTIONS(given);
+  BuildOptions options = ResolveOptions(given, frames);
   if (out_dir.empty()) PLACEDB_THROW_INVALID("an output directory is needed");
   Timer timer;
   const fs::path out = NormalizeOutputPath(out_dir);
@@ -406,6 +456,12 @@ BuildReport BuildDatabase(const std::vector<Frame>& frames, const BuildOptions& 
     if (options.stored_features > 0 && options.track_neighbours > 0) {
       KeepTracked(options, &results, &pool);
     }
+    WholeImageOptions& whole = options.features.whole_image;
+    bool whole_image_model = false;
+    if (whole.enabled && whole.kind == WholeImageKind::kHog) {
+      whole_image_model = FitWholeImageModel(&results, whole, tmp, &pool);
+      if (!whole_image_model) whole.enabled = false;
+    }
 
     BuildReport report;
     report.num_frames = frames.size();
@@ -445,6 +501,7 @@ BuildReport BuildDatabase(const std::vector<Frame>& frames, const BuildOptions& 
     info["counts"]["cropped"] = report.num_cropped;
     info["bytes"]["images"] = report.image_bytes;
     info["bytes"]["full_frames_png"] = report.full_png_bytes;
+    if (whole_image_model) info["whole_image_model"] = kWholeImageModelFile;
     if (options.index == IndexKind::kBow) {
       const IndexFiles files = WriteBowIndex(db, options, tmp.string(), &pool);
       info["index"] = files.manifest;

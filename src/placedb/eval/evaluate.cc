@@ -191,8 +191,12 @@ EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_fra
   };
   EvalReport::SingleFrame single;
   double sequence_ms = 0.0;
+  // Over the whole map when the database has a whole-image channel and the
+  // sequence weighs it (SequenceMatcher::Feed with similarities).
+  const bool whole_map = eval_options.sequence && db.whole_image_dims() > 0 &&
+                         eval_options.sequence_options.whole_image_weight > 0;
   if (eval_options.sequence) {
-    sequence.emplace(keyframes, eval_options.sequence_options);
+    sequence.emplace(whole_map ? db.keyframes() : keyframes, eval_options.sequence_options);
     report.sequence_min_score = eval_options.sequence_options.min_score;
     if (!eval_options.all && static_cast<size_t>(eval_options.num_queries) < queries.size()) {
       spdlog::warn(
@@ -216,11 +220,12 @@ EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_fra
       progress.Advance();
       continue;
     }
-    rec.result = db.Query(image, options);
+    std::vector<float> similarities;
+    rec.result = db.Query(image, options, sequence && whole_map ? &similarities : nullptr);
     if (sequence) {
       const QueryResult frame = rec.result;
       Timer feed_timer;
-      rec.result = sequence->Feed(rec.result);
+      rec.result = sequence->Feed(rec.result, similarities);
       sequence_ms += feed_timer.ElapsedMs();
       report.num_decided_by_sequence += rec.result.decided_by == "sequence";
       // The frame's own answer, judged as a single-frame evaluation would.

@@ -55,8 +55,13 @@ class InfoCommand : public Command {
                db.descriptor_bytes());
     if (db.whole_image_dims() > 0) {
       const WholeImageOptions& w = b.features.whole_image;
-      fmt::print("whole image     {} x {} thumbnails, {}-px tiles ({} values per keyframe)\n",
-                 w.width, w.height, w.patch, db.whole_image_dims());
+      if (w.kind == WholeImageKind::kHog) {
+        fmt::print("whole image     HOG of {} x {} thumbnails, PCA-whitened ({} values per keyframe)\n",
+                   w.hog_width, w.hog_height, db.whole_image_dims());
+      } else {
+        fmt::print("whole image     {} x {} thumbnails, {}-px tiles ({} values per keyframe)\n",
+                   w.width, w.height, w.patch, db.whole_image_dims());
+      }
     } else {
       fmt::print("whole image     none\n");
     }

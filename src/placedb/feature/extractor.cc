@@ -7,6 +7,7 @@
 
 #include "placedb/dataset/frame.h"
 #include "placedb/feature/whole_image.h"
+#include "placedb/feature/whole_image_model.h"
 #include "placedb/image/chromaticity.h"
 #include "placedb/util/check.h"
 #include "placedb/util/options.h"
@@ -19,7 +20,9 @@ int DescriptorBytes(const ExtractorOptions& options) {
 }
 
 int WholeImageDims(const ExtractorOptions& options) {
-  return options.whole_image.enabled ? options.whole_image.width * options.whole_image.height : 0;
+  const WholeImageOptions& w = options.whole_image;
+  if (!w.enabled) return 0;
+  return w.kind == WholeImageKind::kHog ? w.hog_dims : w.width * w.height;
 }
 
 namespace {
@@ -125,25 +128,48 @@ class UpscalingExtractor : public FeatureExtractor {
 // upscaling) to the inner extractor's features.
 class WholeImageExtractor : public FeatureExtractor {
  public:
-  WholeImageExtractor(std::unique_ptr<FeatureExtractor> inner, const WholeImageOptions& options)
-      : inner_(std::move(inner)), options_(options) {}
+  WholeImageExtractor(std::unique_ptr<FeatureExtractor> inner, const WholeImageOptions& options,
+                      std::shared_ptr<const WholeImageModel> model)
+      : inner_(std::move(inner)), options_(options), model_(std::move(model)) {}
 
   FeatureSet Extract(const cv::Mat& image) const override {
     FeatureSet set = inner_->Extract(image);
-    if (!image.empty()) set.whole_image = ComputeWholeImageDescriptor(image, options_);
+    set.whole_image = WholeImage(image);
     return set;
   }
   FeatureType type() const override { return inner_->type(); }
+  cv::Mat WholeImage(const cv::Mat& image) const override {
+    if (image.empty()) return cv::Mat();
+    if (options_.kind == WholeImageKind::kThumbnail)
+      return ComputeWholeImageDescriptor(image, options_);
+    if (model_) return model_->Describe(image);
+    return ComputeHogRaw(image, options_.hog_width, options_.hog_height);
+  }
 
  private:
   std::unique_ptr<FeatureExtractor> inner_;
   WholeImageOptions options_;
+  std::shared_ptr<const WholeImageModel> model_;
 };
 
 }  // namespace
 
-std::unique_ptr<FeatureExtractor> FeatureExtractor::Create(const ExtractorOptions& options) {
+std::unique_ptr<FeatureExtractor> FeatureExtractor::Create(
+    const ExtractorOptions& options, std::shared_ptr<const WholeImageModel> model) {
   PLACEDB_CHECK_OPTIONS(options);
+  const WholeImageOptions& w = options.whole_image;
+  if (w.enabled && w.kind == WholeImageKind::kHog) {
+    if (w.hog_height == 0) {
+      PLACEDB_THROW_INVALID("the HOG whole-image channel needs its thumbnail height (`whole_image_hog_height`, set "
+                            "from the map's frames by a build)");
+    }
+    if (model && (model->width() != w.hog_width || model->height() != w.hog_height ||
+                  model->output_dims() != w.hog_dims)) {
+      PLACEDB_THROW_INVALID("a whole-image model of ", model->width(), " x ", model->height(),
+                            " thumbnails and ", model->output_dims(), " values for options of ",
+                            w.hog_width, " x ", w.hog_height, " and ", w.hog_dims);
+    }
+  }
   std::unique_ptr<FeatureExtractor> extractor;
   switch (options.type) {
     case FeatureType::kOrb:
@@ -166,7 +192,8 @@ std::unique_ptr<FeatureExtractor> FeatureExtractor::Create(const ExtractorOption
                                                      options.upscale_below);
   }
   if (options.whole_image.enabled) {
-    extractor = std::make_unique<WholeImageExtractor>(std::move(extractor), options.whole_image);
+    extractor = std::make_unique<WholeImageExtractor>(std::move(extractor), options.whole_image,
+                                                      std::move(model));
   }
   return extractor;
 }

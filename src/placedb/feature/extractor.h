@@ -13,9 +13,11 @@ namespace placedb {
 
 // Bytes per descriptor row the options produce: 32 (ORB), 256 or 512 (SURF).
 int DescriptorBytes(const ExtractorOptions& options);
-// Values per whole-image row the options produce: width x height, 0 when
-// the channel is off.
+// Values per whole-image row the options produce: width x height for the
+// thumbnail, hog_dims for HOG, 0 when the channel is off.
 int WholeImageDims(const ExtractorOptions& options);
+
+class WholeImageModel;
 
 class FeatureExtractor {
  public:
@@ -28,9 +30,17 @@ class FeatureExtractor {
   // are upscaled; empty for an empty image).
   virtual FeatureSet Extract(const cv::Mat& image) const = 0;
   virtual FeatureType type() const = 0;
+  // The whole-image row of `image` alone (what Extract puts in
+  // FeatureSet::whole_image); empty when the channel is off.
+  virtual cv::Mat WholeImage(const cv::Mat& image) const { return cv::Mat(); }
 
-  // The concrete extractor for `options.type`.
-  static std::unique_ptr<FeatureExtractor> Create(const ExtractorOptions& options);
+  // The concrete extractor for `options.type`. With WholeImageKind::kHog the
+  // whole-image row is `model`'s projection (a CV_8S row of hog_dims); without
+  // a model it is the raw HOG row (CV_8U, feature/whole_image_model.h) that a
+  // build fits its model on. `model` must outlive the extractor.
+  static std::unique_ptr<FeatureExtractor> Create(const ExtractorOptions& options,
+                                                  std::shared_ptr<const WholeImageModel> model =
+                                                      nullptr);
 };
 
 }  // namespace placedb

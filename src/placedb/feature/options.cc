@@ -2,6 +2,7 @@
 // shares (util/option_table.h; SURF's is in surf/surf_options.cc).
 #include "placedb/feature/options.h"
 #include "placedb/util/option_table.h"
+#include "placedb/util/check.h"
 
 #include <algorithm>
 #include <string>
@@ -48,10 +49,28 @@ const OptionTable<WholeImageOptions>& WholeImageOptions::Table() {
              "whole image: side of the normalised tiles, px")
         .absent = int64_t{defaults.patch};
     t.Bool("whole_image", PLACEDB_MEMBER(O, enabled),
-           "whole-image channel: a patch-normalised thumbnail per image (SeqSLAM's)",
+           "whole-image channel: a descriptor of the whole image per keyframe and query",
            BoolFlag::kNegatable)
         .absent = false;
+    t.Choice("whole_image_kind", PLACEDB_MEMBER(O, kind),
+             {WholeImageKind::kThumbnail, WholeImageKind::kHog}, ParseWholeImageKind,
+             WholeImageKindName,
+             "whole image: thumbnail (SeqSLAM's patch-normalised thumbnail) or hog (HOG of a "
+             "contrast-equalised thumbnail, PCA-whitened by a model of the map)")
+        .absent = std::string("thumbnail");
+    t.Number("whole_image_hog_width", PLACEDB_MEMBER(O, hog_width), OptionRange::Closed(16, 128),
+             "whole image, hog: thumbnail width, px (a multiple of 8)")
+        .absent = int64_t{defaults.hog_width};
+    t.Number("whole_image_hog_height", PLACEDB_MEMBER(O, hog_height), OptionRange::Closed(0, 128),
+             "whole image, hog: thumbnail height, px (a multiple of 8; 0: the map's aspect)")
+        .absent = int64_t{defaults.hog_height};
+    t.Number("whole_image_hog_dims", PLACEDB_MEMBER(O, hog_dims), OptionRange::Closed(16, 1024),
+             "whole image, hog: values per row after the map's PCA")
+        .absent = int64_t{defaults.hog_dims};
     t.Rule([](const O& o) -> std::string {
+      if (o.hog_width % 8 != 0) return "`whole_image_hog_width` must be a multiple of 8";
+      if (o.hog_height != 0 && (o.hog_height < 16 || o.hog_height % 8 != 0))
+        return "`whole_image_hog_height` must be 0 or a multiple of 8 in [16, 128]";
       if (o.patch > std::min(o.width, o.height)) {
         return "`whole_image_patch` must be at most the smaller of `whole_image_width` and "
                "`whole_image_height` (" +
@@ -65,6 +84,16 @@ const OptionTable<WholeImageOptions>& WholeImageOptions::Table() {
 }
 
 std::string WholeImageOptions::Check() const { return Table().Check(*this); }
+
+const char* WholeImageKindName(WholeImageKind kind) {
+  return kind == WholeImageKind::kHog ? "hog" : "thumbnail";
+}
+
+WholeImageKind ParseWholeImageKind(const std::string& name) {
+  if (name == "thumbnail") return WholeImageKind::kThumbnail;
+  if (name == "hog") return WholeImageKind::kHog;
+  PLACEDB_THROW_INVALID("unknown whole-image kind '", name, "' (thumbnail or hog)");
+}
 
 const OptionTable<ExtractorOptions>& ExtractorOptions::Table() {
   static const OptionTable<ExtractorOptions> table = [] {

@@ -32,10 +32,22 @@ struct OrbOptions {
   std::string Check() const;
 };
 
-// The whole-image channel (feature/whole_image.h): SeqSLAM's
-// patch-normalised thumbnail, one row of width x height int8 values per
-// keyframe and query.
+// The descriptor of the whole-image channel.
+enum class WholeImageKind {
+  kThumbnail = 0,  // SeqSLAM's patch-normalised thumbnail (width x height values)
+  kHog = 1,        // HOG of a contrast-equalised thumbnail, PCA-whitened by a model of the map
+};
+const char* WholeImageKindName(WholeImageKind kind);
+// "thumbnail" or "hog"; InvalidArgument otherwise.
+WholeImageKind ParseWholeImageKind(const std::string& name);
+
+// The whole-image channel (feature/whole_image.h): one row of int8 values
+// per keyframe and query, SeqSLAM's patch-normalised thumbnail or a
+// PCA-whitened HOG of the whole frame.
 struct WholeImageOptions {
+  // Which descriptor. Default kThumbnail; a manifest without the key reads
+  // kThumbnail (its databases have today's rows).
+  WholeImageKind kind = WholeImageKind::kThumbnail;
   // Thumbnail width and height, pixels. Range [4, 64]. Default 32 x 24.
   int width = 32;
   int height = 24;
@@ -45,6 +57,18 @@ struct WholeImageOptions {
   // Whether extraction computes it (and a database keeps it). Default true;
   // a manifest written before the channel existed reads as false.
   bool enabled = true;
+  // kHog: the thumbnail's width, pixels (a multiple of 8). Range [16, 128].
+  // Default 64.
+  int hog_width = 64;
+  // kHog: its height (a multiple of 8); 0: from the map's first frame, its
+  // aspect kept (64 x 48 for 4:3 frames, 64 x 32 for 2:1), which the build
+  // records. Range 0 or [16, 128]. Default 0.
+  int hog_height = 0;
+  // kHog: values per row after the model's projection (the map's principal
+  // components, whitened; a map of fewer keyframes has fewer components and
+  // the rest of the row is 0). Range [16, 1024]. Default 512 (512 bytes per
+  // keyframe).
+  int hog_dims = 512;
 
   // The options' names, defaults, ranges and help (util/option_table.h).
   static const OptionTable<WholeImageOptions>& Table();

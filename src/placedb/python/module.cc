@@ -921,13 +921,16 @@ PYBIND11_MODULE(placedb, m) {
             const QueryOptions options = QueryOptionsFrom(kwargs, "query");
             const ImageInput in = ToImage(image);
             QueryResult frame;
+            std::vector<float> similarities;
             {
               py::gil_scoped_release release;
-              frame = s.db.Query(in.mat, options);
+              frame = s.db.Query(in.mat, options,
+                                 s.matcher.options().whole_image_weight > 0 ? &similarities
+                                                                            : nullptr);
             }
-            return s.matcher.Feed(std::move(frame));
+            return s.matcher.Feed(std::move(frame), similarities);
           },
-          py::arg("image"), "db.query(image, **query_options), then feed(): the sequence's answer.")
+          py::arg("image"), "db.query(image, **query_options), then feed() with the frame's whole-image similarity to every keyframe (the whole map is searched when the database has a whole-image channel and sequence_whole_image_weight > 0): the sequence's answer.")
       .def(
           "reset", [](SequenceSession& s) { s.matcher.Reset(); }, "Forgets every frame.")
       .def(

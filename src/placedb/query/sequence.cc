@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "placedb/util/check.h"
 
@@ -34,6 +35,18 @@ const OptionTable<SequenceOptions>& SequenceOptions::Table() {
              "sequence: the best path is the answer when its mean score per frame is at least "
              "this",
              kCallers);
+    t.Number("sequence_whole_image_weight", PLACEDB_MEMBER(O, whole_image_weight),
+             OptionRange::Closed(0, 1000),
+             "sequence over the whole map: a keyframe's evidence adds this times its standardised "
+             "whole-image similarity (0: each frame's ranked keyframes alone)",
+             kCallers)
+        .absent = 0.0;
+    t.Number("sequence_contrast_window", PLACEDB_MEMBER(O, contrast_window),
+             OptionRange::Closed(0, 100000),
+             "sequence over the whole map: standardise over this many keyframes on each side "
+             "(SeqSLAM's local contrast enhancement; 0: over the whole map)",
+             kCallers)
+        .absent = int64_t{0};
     t.Rule([](const O& o) -> std::string {
       if (o.min_length > o.length) return "`sequence_min_length` is above `sequence_length`";
       if (o.min_velocity > o.max_velocity)
@@ -69,16 +82,24 @@ SequenceMatcher::SequenceMatcher(const std::vector<Keyframe>& keyframes,
 }
 
 void SequenceMatcher::SetKeyframes(const std::vector<Keyframe>& keyframes) {
-  order_ = keyframes;
   const bool timed =
-      !order_.empty() && std::all_of(order_.begin(), order_.end(),
-                                     [](const Keyframe& k) { return k.timestamp >= 0.0; });
-  std::stable_sort(order_.begin(), order_.end(), [timed](const Keyframe& a, const Keyframe& b) {
+      !keyframes.empty() && std::all_of(keyframes.begin(), keyframes.end(),
+                                        [](const Keyframe& k) { return k.timestamp >= 0.0; });
+  std::vector<size_t> sorted(keyframes.size());
+  for (size_t i = 0; i < sorted.size(); ++i) sorted[i] = i;
+  std::stable_sort(sorted.begin(), sorted.end(), [&](size_t x, size_t y) {
+    const Keyframe& a = keyframes[x];
+    const Keyframe& b = keyframes[y];
     if (timed && a.timestamp != b.timestamp) return a.timestamp < b.timestamp;
     return a.id < b.id;
   });
+  order_.clear();
+  order_.reserve(keyframes.size());
   position_.clear();
-  for (size_t i = 0; i < order_.size(); ++i) {
+  table_position_.assign(keyframes.size(), 0);
+  for (size_t i = 0; i < sorted.size(); ++i) {
+    order_.push_back(keyframes[sorted[i]]);
+    table_position_[sorted[i]] = static_cast<int32_t>(i);
     if (!position_.emplace(order_[i].id, static_cast<int32_t>(i)).second) {
       PLACEDB_THROW_INVALID("the keyframe table holds keyframe ", order_[i].id, " twice");
     }
@@ -88,25 +109,97 @@ void SequenceMatcher::SetKeyframes(const std::vector<Keyframe>& keyframes) {
 
 void SequenceMatcher::Reset() { frames_.clear(); }
 
-QueryResult SequenceMatcher::Feed(QueryResult frame) {
-  // This frame's evidence: its ranked keyframes' positions and scores.
-  FrameEvidence evidence;
+namespace {
+
+// A frame's local evidence: its ranked keyframes' positions and scores, by
+// position, each once.
+std::vector<std::pair<int32_t, double>> LocalEvidence(
+    const QueryResult& frame, const std::unordered_map<int32_t, int32_t>& position,
+    double match_weight, size_t most) {
+  std::vector<std::pair<int32_t, double>> entries;
   for (const RankedKeyframe& r : frame.ranked) {
-    if (evidence.entries.size() == kMaxEvidencePerFrame) break;
-    const auto it = position_.find(r.keyframe_id);
-    if (it == position_.end()) continue;
-    evidence.entries.emplace_back(
-        it->second, std::max(0.0, r.score) + options_.match_weight * std::max(0, r.num_matches));
+    if (entries.size() == most) break;
+    const auto it = position.find(r.keyframe_id);
+    if (it == position.end()) continue;
+    entries.emplace_back(it->second,
+                         std::max(0.0, r.score) + match_weight * std::max(0, r.num_matches));
   }
-  std::sort(evidence.entries.begin(), evidence.entries.end());
-  evidence.entries.erase(
-      std::unique(evidence.entries.begin(), evidence.entries.end(),
-                  [](const auto& a, const auto& b) { return a.first == b.first; }),
-      evidence.entries.end());
+  std::sort(entries.begin(), entries.end());
+  entries.erase(std::unique(entries.begin(), entries.end(),
+                            [](const auto& a, const auto& b) { return a.first == b.first; }),
+                entries.end());
+  return entries;
+}
+
+}  // namespace
+
+QueryResult SequenceMatcher::Feed(QueryResult frame) {
+  FrameEvidence evidence;
+  evidence.entries = LocalEvidence(frame, position_, options_.match_weight, kMaxEvidencePerFrame);
   frames_.push_front(std::move(evidence));
   while (frames_.size() > static_cast<size_t>(options_.length)) frames_.pop_back();
+  return Decide(std::move(frame));
+}
+
+QueryResult SequenceMatcher::Feed(QueryResult frame, const std::vector<float>& similarities) {
+  if (similarities.empty() || options_.whole_image_weight == 0) return Feed(std::move(frame));
+  const size_t n = order_.size();
+  if (similarities.size() != n) {
+    PLACEDB_THROW_INVALID("whole-image similarities for ", similarities.size(),
+                          " keyframes, the sequence's table has ", n);
+  }
+  FrameEvidence evidence;
+  evidence.entries = LocalEvidence(frame, position_, options_.match_weight, kMaxEvidencePerFrame);
+  // The similarities by position, standardised over the map (or over a
+  // window of keyframes around each), NaN left out (0 evidence).
+  std::vector<double> value(n, 0.0), valid(n, 0.0);
+  for (size_t t = 0; t < n; ++t) {
+    const float v = similarities[t];
+    if (std::isfinite(v)) {
+      value[static_cast<size_t>(table_position_[t])] = v;
+      valid[static_cast<size_t>(table_position_[t])] = 1.0;
+    }
+  }
+  std::vector<double> sum(n + 1, 0.0), squares(n + 1, 0.0), count(n + 1, 0.0);
+  for (size_t p = 0; p < n; ++p) {
+    sum[p + 1] = sum[p] + value[p];
+    squares[p + 1] = squares[p] + value[p] * value[p];
+    count[p + 1] = count[p] + valid[p];
+  }
+  evidence.dense.assign(n, 0.0f);
+  const auto w = static_cast<int64_t>(options_.contrast_window);
+  for (size_t p = 0; p < n; ++p) {
+    if (valid[p] == 0.0) continue;
+    const size_t lo = w > 0 ? static_cast<size_t>(std::max<int64_t>(0, static_cast<int64_t>(p) - w)) : 0;
+    const size_t hi = w > 0 ? std::min(n, p + static_cast<size_t>(w) + 1) : n;
+    const double c = count[hi] - count[lo];
+    if (c < 2) continue;
+    const double mean = (sum[hi] - sum[lo]) / c;
+    const double var = (squares[hi] - squares[lo]) / c - mean * mean;
+    // A flat neighbourhood (every similarity equal) holds no evidence.
+    if (!(var > 1e-12)) continue;
+    evidence.dense[p] =
+        static_cast<float>(options_.whole_image_weight * (value[p] - mean) / std::sqrt(var));
+  }
+  for (const auto& [p, score] : evidence.entries) evidence.dense[static_cast<size_t>(p)] += score;
+  frames_.push_front(std::move(evidence));
+  while (frames_.size() > static_cast<size_t>(options_.length)) frames_.pop_back();
+  return Decide(std::move(frame));
+}
+
+QueryResult SequenceMatcher::Decide(QueryResult frame) {
   const size_t h = frames_.size();
   const int64_t n = static_cast<int64_t>(order_.size());
+  // A frame's evidence at a position: its dense row when it has one (the
+  // whole map), else its entries.
+  auto at = [&](size_t k, int64_t p) -> double {
+    const FrameEvidence& f = frames_[k];
+    if (p < 0 || p >= n) return 0.0;
+    if (!f.dense.empty()) return f.dense[static_cast<size_t>(p)];
+    return f.Lookup(p);
+  };
+  const bool dense = std::any_of(frames_.begin(), frames_.end(),
+                                 [](const FrameEvidence& f) { return !f.dense.empty(); });
 
   // Offsets round(v k) per velocity and frame age, shared by both directions
   // of a path so that an end found from a position leads back to it.
@@ -117,36 +210,51 @@ QueryResult SequenceMatcher::Feed(QueryResult frame) {
           static_cast<int64_t>(std::lround(velocities_[vi] * static_cast<double>(k)));
     }
   }
-  // Ends some held frame's evidence reaches; scored once each per velocity.
+  // The ends scored: every position over the whole map, else those some
+  // held frame's evidence reaches; each once per velocity.
   std::vector<std::pair<int64_t, size_t>> ends;  // (end position, velocity index)
-  for (size_t k = 0; k < h; ++k) {
-    for (const auto& e : frames_[k].entries) {
-      for (size_t vi = 0; vi < velocities_.size(); ++vi) {
-        const int64_t j = e.first + offset[vi * h + k];
-        if (j >= 0 && j < n) ends.emplace_back(j, vi);
+  if (dense) {
+    ends.reserve(static_cast<size_t>(n) * velocities_.size());
+    for (int64_t j = 0; j < n; ++j)
+      for (size_t vi = 0; vi < velocities_.size(); ++vi) ends.emplace_back(j, vi);
+  } else {
+    for (size_t k = 0; k < h; ++k) {
+      for (const auto& e : frames_[k].entries) {
+        for (size_t vi = 0; vi < velocities_.size(); ++vi) {
+          const int64_t j = e.first + offset[vi * h + k];
+          if (j >= 0 && j < n) ends.emplace_back(j, vi);
+        }
       }
     }
+    std::sort(ends.begin(), ends.end());
+    ends.erase(std::unique(ends.begin(), ends.end()), ends.end());
   }
-  std::sort(ends.begin(), ends.end());
-  ends.erase(std::unique(ends.begin(), ends.end()), ends.end());
   const double mid = 0.5 * (options_.min_velocity + options_.max_velocity);
-  double best_sum = -1.0;
+  double best_sum = -std::numeric_limits<double>::infinity();
   int64_t best_end = -1;
   size_t best_v = 0, best_used = 0;
+  const size_t m0 = std::min(h, static_cast<size_t>(options_.min_length));
   for (const auto& [j, vi] : ends) {
     // The path's best mean over its newest m frames, m from min_length up:
     // a path that began when the camera came back to a mapped stretch is
     // not diluted by the frames before.
-    double sum = -1.0, prefix = 0.0;
-    const size_t m0 = std::min(h, static_cast<size_t>(options_.min_length));
+    // Over the whole map every keyframe has standardised evidence in every
+    // frame, and the newest m frames are compared by their sum over sqrt(m)
+    // (what a sum of m independent standard scores is scaled by): a short
+    // path of chance highs does not beat a long consistent one.
+    double sum = -std::numeric_limits<double>::infinity(), prefix = 0.0, rank_of_best = sum;
     size_t used = h;
     for (size_t k = 0; k < h; ++k) {
-      prefix += frames_[k].Lookup(j - offset[vi * h + k]);
-      if (k + 1 >= m0 && prefix / static_cast<double>(k + 1) * static_cast<double>(h) > sum) {
-        sum = prefix / static_cast<double>(k + 1) * static_cast<double>(h);
+      prefix += at(k, j - offset[vi * h + k]);
+      const double m = static_cast<double>(k + 1);
+      const double rank = dense ? prefix / std::sqrt(m) : prefix / m;
+      if (k + 1 >= m0 && rank > rank_of_best) {
+        rank_of_best = rank;
+        sum = prefix / m * static_cast<double>(h);
         used = k + 1;
       }
     }
+    if (dense) sum = rank_of_best;  // paths compared by it; the score reported below
     // Ties: the lower end position (ends are visited in position order),
     // then the velocity nearer the middle of the range.
     if (sum > best_sum || (sum == best_sum && j == best_end &&
@@ -167,7 +275,9 @@ QueryResult SequenceMatcher::Feed(QueryResult frame) {
   s.frame_matched = frame.matched;
   if (best_end >= 0) {
     s.keyframe_id = order_[static_cast<size_t>(best_end)].id;
-    s.score = best_sum / static_cast<double>(h);
+    // The path's mean evidence per frame over the frames it used.
+    s.score = dense ? best_sum / std::sqrt(static_cast<double>(best_used))
+                    : best_sum / static_cast<double>(h);
     s.velocity = velocities_[best_v];
   }
   frame.sequence = s;

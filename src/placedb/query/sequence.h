@@ -76,6 +76,20 @@ struct SequenceOptions {
   // Decide: the best path's mean evidence per frame must reach this. Range
   // [0, 100000]. Default 5.
   double min_score = 5.0;
+  // Over the whole map (Feed with similarities): a keyframe's evidence in a
+  // frame adds this times its whole-image similarity standardised over the
+  // map's keyframes for that frame (minus their mean, over their standard
+  // deviation), so that every keyframe has evidence in every frame, as in
+  // SeqSLAM's difference matrix; 0: each frame's ranked keyframes alone.
+  // Range [0, 1000]. Default 0 (10 with a HOG channel: a keyframe 3 standard
+  // deviations above the map counts as 30 inliers; README "Places that
+  // change" has what it gives).
+  double whole_image_weight = 0.0;
+  // Over the whole map: the standardisation is over the `contrast_window`
+  // keyframes on each side of a keyframe (SeqSLAM's local contrast
+  // enhancement) instead of the whole map when above 0. Range [0, 100000].
+  // Default 0.
+  int contrast_window = 0;
 
   static const OptionTable<SequenceOptions>& Table();
   std::string Check() const;
@@ -91,6 +105,19 @@ class SequenceMatcher {
   // Adds `frame` (a single-frame answer) as the newest frame and returns it
   // with the sequence's decision.
   QueryResult Feed(QueryResult frame);
+  // The same over the whole map: `similarities` holds the frame's
+  // whole-image similarity to every keyframe of the table, in the table's
+  // order (PlaceDatabase::WholeImageSimilarities), num_keyframes() values
+  // (NaN for a keyframe to leave out, a removed one). Every keyframe is
+  // every frame's evidence (see whole_image_weight), so every path through
+  // the map is scored: the work per frame is num_keyframes() x
+  // velocity_steps x length, and the frames held take length x
+  // num_keyframes() floats. A frame fed without similarities while others
+  // had them counts as a frame whose whole-image evidence is 0.
+  // Empty `similarities` (a database without the channel), or
+  // whole_image_weight 0: Feed(frame). InvalidArgument for another number
+  // of values.
+  QueryResult Feed(QueryResult frame, const std::vector<float>& similarities);
 
   // Forgets every frame.
   void Reset();
@@ -104,12 +131,15 @@ class SequenceMatcher {
  private:
   struct FrameEvidence {
     std::vector<std::pair<int32_t, double>> entries;  // (position, score), by position
+    std::vector<float> dense;  // whole map: the evidence by position, entries included
     double Lookup(int64_t position) const;
   };
+  QueryResult Decide(QueryResult frame);
 
   SequenceOptions options_;
   std::vector<Keyframe> order_;                    // keyframes in sequence order (no features)
   std::unordered_map<int32_t, int32_t> position_;  // keyframe id -> index in order_
+  std::vector<int32_t> table_position_;            // table index -> index in order_
   std::vector<double> velocities_;
   std::deque<FrameEvidence> frames_;  // newest first
 };

@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <random>
 #include <vector>
 
@@ -192,6 +194,156 @@ TEST(SequenceMatcherTest, TheSequencePartTravelsAsJson) {
   std::string no_part = QueryResultToJson(r);
   no_part.replace(no_part.find("\"decided_by\":\"sequence\""), 23, "\"decided_by\":\"guess\"");
   EXPECT_THROW(QueryResultFromJson(no_part), InvalidArgument);
+}
+
+// The whole map: the frames' whole-image similarities (table order) and
+// local answers, oldest first.
+struct DenseFrame {
+  std::vector<float> similarity;
+  std::vector<std::pair<int32_t, double>> local;
+};
+
+// What Feed with similarities must answer after `frames` (oldest first), by
+// brute force from its contract: evidence = weight x the similarity
+// standardised over the window (population deviation; NaN and flat windows
+// give 0) + the local score; every end and velocity; a path's rank is the
+// best sum over its newest m frames over sqrt(m), m >= min_length; the
+// score its mean over those m. Only the frames given (the earlier ones) and
+// only the newest `length` of them.
+std::pair<int32_t, double> BruteForce(const std::vector<Keyframe>& table,
+                                      const std::vector<DenseFrame>& frames,
+                                      const SequenceOptions& o) {
+  const int n = static_cast<int>(table.size());
+  // Sequence order: the ids are 1..n with times in id order here.
+  std::vector<int> pos(static_cast<size_t>(n));
+  for (int t = 0; t < n; ++t) pos[static_cast<size_t>(t)] = table[static_cast<size_t>(t)].id - 1;
+  const size_t h = std::min(frames.size(), static_cast<size_t>(o.length));
+  std::vector<std::vector<double>> e(h, std::vector<double>(static_cast<size_t>(n), 0.0));
+  for (size_t k = 0; k < h; ++k) {
+    const DenseFrame& f = frames[frames.size() - 1 - k];
+    std::vector<double> v(static_cast<size_t>(n), std::nan(""));
+    for (int t = 0; t < n; ++t) v[static_cast<size_t>(pos[static_cast<size_t>(t)])] = f.similarity[static_cast<size_t>(t)];
+    for (int p = 0; p < n; ++p) {
+      if (!std::isfinite(v[static_cast<size_t>(p)])) continue;
+      const int lo = o.contrast_window > 0 ? std::max(0, p - o.contrast_window) : 0;
+      const int hi = o.contrast_window > 0 ? std::min(n - 1, p + o.contrast_window) : n - 1;
+      double s = 0, ss = 0, c = 0;
+      for (int q = lo; q <= hi; ++q) {
+        if (!std::isfinite(v[static_cast<size_t>(q)])) continue;
+        s += v[static_cast<size_t>(q)];
+        ss += v[static_cast<size_t>(q)] * v[static_cast<size_t>(q)];
+        c += 1;
+      }
+      if (c < 2) continue;
+      const double mean = s / c, var = ss / c - mean * mean;
+      if (var > 1e-12) e[k][static_cast<size_t>(p)] = o.whole_image_weight * (v[static_cast<size_t>(p)] - mean) / std::sqrt(var);
+    }
+    for (const auto& [id, score] : f.local) e[k][static_cast<size_t>(id - 1)] += score;
+  }
+  double best_rank = -1e300, best_score = 0;
+  int32_t best_id = -1;
+  for (int j = 0; j < n; ++j) {
+    for (int vi = 0; vi < o.velocity_steps; ++vi) {
+      const double v = o.velocity_steps == 1 ? o.min_velocity
+                                             : o.min_velocity + (o.max_velocity - o.min_velocity) *
+                                                                    vi / (o.velocity_steps - 1);
+      double prefix = 0;
+      for (size_t k = 0; k < h; ++k) {
+        const long p = j - std::lround(v * static_cast<double>(k));
+        if (p >= 0 && p < n) prefix += e[k][static_cast<size_t>(p)];
+        const double m = static_cast<double>(k + 1);
+        if (k + 1 >= std::min(h, static_cast<size_t>(o.min_length)) &&
+            prefix / std::sqrt(m) > best_rank + 1e-9) {
+          best_rank = prefix / std::sqrt(m);
+          best_score = prefix / m;
+          best_id = j + 1;
+        }
+      }
+    }
+  }
+  return {best_id, best_score};
+}
+
+// Over the whole map the matcher finds the path of the camera through
+// keyframes that no frame ranks and whose similarity is never the frame's
+// best: every frame's best is a random wrong keyframe, the true one is only
+// somewhat above the noise. Its answers are what a brute force over the
+// frames fed so far gives (causal: a frame's answer uses only it and the
+// frames before, and only the newest `length`), in whatever order the
+// keyframe table lists the keyframes, with and without a contrast window.
+TEST(SequenceMatcherTest, OverTheWholeMapEveryPathIsScoredCausally) {
+  std::vector<Keyframe> table = Keyframes(300);
+  std::mt19937 rng(11);
+  std::shuffle(table.begin(), table.end(), rng);  // the table's order is not the map's
+  std::vector<int> row_of(301);
+  for (size_t t = 0; t < table.size(); ++t) row_of[static_cast<size_t>(table[t].id)] = static_cast<int>(t);
+  std::normal_distribution<float> noise(0.0f, 0.05f);
+  std::uniform_int_distribution<int> any(1, 300);
+  std::vector<DenseFrame> frames;
+  for (int t = 0; t < 40; ++t) {
+    DenseFrame f;
+    f.similarity.resize(300);
+    for (float& v : f.similarity) v = 0.3f + noise(rng);
+    const int truth = 100 + t;
+    f.similarity[static_cast<size_t>(row_of[static_cast<size_t>(truth)])] += 0.15f;
+    int wrong = any(rng);
+    while (std::abs(wrong - truth) < 3) wrong = any(rng);
+    f.similarity[static_cast<size_t>(row_of[static_cast<size_t>(wrong)])] += 0.3f;
+    if (t % 3 == 0) f.local = {{wrong, 4.0}};  // local answers mislead too
+    if (t == 7) f.similarity[5] = std::nanf("");  // a keyframe left out
+    frames.push_back(f);
+  }
+  for (const int window : {0, 25}) {
+    SequenceOptions o;
+    o.whole_image_weight = 10.0;
+    o.contrast_window = window;
+    SequenceMatcher matcher(table, o);
+    int right = 0;
+    for (size_t t = 0; t < frames.size(); ++t) {
+      QueryResult frame;
+      for (const auto& [id, score] : frames[t].local) {
+        RankedKeyframe k;
+        k.keyframe_id = id;
+        k.score = score;
+        frame.ranked.push_back(k);
+      }
+      const QueryResult r = matcher.Feed(frame, frames[t].similarity);
+      ASSERT_TRUE(r.sequence.has_value());
+      const std::vector<DenseFrame> so_far(frames.begin(), frames.begin() + static_cast<long>(t) + 1);
+      const auto [id, score] = BruteForce(table, so_far, o);
+      EXPECT_EQ(r.sequence->keyframe_id, id) << "frame " << t << ", window " << window;
+      EXPECT_NEAR(r.sequence->score, score, 1e-4) << "frame " << t;
+      if (t >= 5) {
+        EXPECT_EQ(r.decided_by, "sequence");
+        right += r.ranked.front().keyframe_id == 100 + static_cast<int>(t);
+      }
+    }
+    EXPECT_EQ(matcher.frames_held(), 10u);
+    EXPECT_GE(right, 33) << "window " << window;  // of 35
+  }
+  SequenceOptions o;
+  o.whole_image_weight = 10.0;
+  SequenceMatcher matcher(table, o);
+  EXPECT_THROW(matcher.Feed(QueryResult(), std::vector<float>(299, 0.0f)), InvalidArgument);
+  // Every similarity equal: no evidence, no path reaches the score.
+  QueryResult r;
+  for (int t = 0; t < 4; ++t) r = matcher.Feed(QueryResult(), std::vector<float>(300, 0.5f));
+  EXPECT_EQ(r.sequence->score, 0.0);
+  EXPECT_FALSE(r.matched);
+  // Weight 0 (the default), or no similarities: each frame's ranked list
+  // alone, as Feed(frame).
+  SequenceMatcher local(table, SequenceOptions()), plain(table, SequenceOptions());
+  for (size_t t = 0; t < 12; ++t) {
+    QueryResult frame;
+    RankedKeyframe k;
+    k.keyframe_id = 50 + static_cast<int32_t>(t);
+    k.score = 9.0;
+    frame.ranked.push_back(k);
+    const QueryResult a = local.Feed(frame, frames[t].similarity);
+    const QueryResult b = plain.Feed(frame);
+    EXPECT_EQ(a.sequence, b.sequence);
+    EXPECT_EQ(a.ranked.front().keyframe_id, b.ranked.front().keyframe_id);
+  }
 }
 
 }  // namespace

@@ -12,7 +12,9 @@
 #include "placedb/dataset/image_folder.h"
 #include "placedb/dataset/tum.h"
 #include "placedb/session/place_database.h"
+#include "placedb/feature/whole_image_model.h"
 #include "placedb/storage/database.h"
+#include "placedb/storage/whole_image_model_file.h"
 #include "placedb/util/file_io.h"
 #include "placedb/util/testing.h"
 
@@ -301,6 +303,56 @@ TEST_F(AddFramesTest, IdsFromAnOffsetOrFromNames) {
   EXPECT_NE(db.FindKeyframe(r.ids[0])->source_hash, 0u);
   r = db.AddFrames({from_bag}, skip);
   EXPECT_EQ(r.skipped, 1u);
+}
+
+// A database with the HOG whole-image channel: the build fits its model
+// and names it in the manifest; a session projects queries and added
+// frames with it (a frame's own row is what the build stored for it), its
+// similarities serve the whole-map sequence, and a missing, damaged or
+// mismatched model file is CorruptDatabase at the open.
+TEST(HogChannelTest, BuildAddQueryAndADamagedModel) {
+  testing_util::TempDir tmp;
+  const std::string dir = tmp.Path("db");
+  BuildOptions options;
+  options.threads = 2;
+  options.progress = false;
+  options.features.whole_image.kind = WholeImageKind::kHog;
+  BuildDatabase(ListImageFolder(kImages, 1, 20), options, dir, "rtabmap 1..20");
+  {
+    PlaceDatabase db = PlaceDatabase::Open(dir);
+    EXPECT_EQ(db.whole_image_dims(), 512);
+    EXPECT_EQ(db.build_options().features.whole_image.hog_height, 48);  // 512 x 384 frames
+    const FeatureSet q = db.Extract(cv::imread(RtabmapImage(7)));
+    ASSERT_EQ(q.whole_image.type(), CV_8SC1);
+    ASSERT_EQ(q.whole_image.cols, 512);
+    const std::vector<float> s = db.WholeImageSimilarities(q);
+    ASSERT_EQ(s.size(), 20u);
+    EXPECT_NEAR(s[6], 1.0f, 1e-5);  // keyframe 7 is this image
+    EXPECT_EQ(std::max_element(s.begin(), s.end()) - s.begin(), 6);
+    db.AddFrames(ListImageFolder(kImages, 50, 51));
+    const FeatureSet added = db.KeyframeFeatures(21);
+    const FeatureSet again = db.Extract(cv::imread(RtabmapImage(50)));
+    EXPECT_EQ(cv::norm(added.whole_image, again.whole_image, cv::NORM_INF), 0);
+    std::vector<float> sims;
+    db.Query(cv::imread(RtabmapImage(51)), QueryOptions(), &sims);
+    ASSERT_EQ(sims.size(), 22u);
+    EXPECT_NEAR(sims[21], 1.0f, 1e-5);
+  }
+  const std::string model = dir + "/whole_image_model.bin";
+  const std::string bytes = ReadFileToString(model);
+  fs::remove(model);
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { PlaceDatabase::Open(dir); }, "is missing"));
+  std::string damaged = bytes;
+  damaged[200] ^= 1;
+  WriteFileAtomic(model, damaged);
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { PlaceDatabase::Open(dir); }, "whole_image_model.bin"));
+  // A valid model of another shape than the manifest's settings.
+  std::vector<cv::Mat> raw;
+  for (int i = 1; i <= 4; ++i) raw.push_back(ComputeHogRaw(cv::imread(RtabmapImage(i)), 64, 48));
+  SaveWholeImageModel(WholeImageModel::Fit(raw, 64, 48, 256), model);
+  EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { PlaceDatabase::Open(dir); }, "the manifest's settings"));
+  WriteFileAtomic(model, bytes);
+  EXPECT_NO_THROW(PlaceDatabase::Open(dir));
 }
 
 }  // namespace

@@ -19,7 +19,10 @@
 #include "placedb/feature/extractor.h"
 #include "placedb/query/query.h"
 #include "placedb/session/storage_view.h"
+#include "placedb/feature/whole_image.h"
+#include "placedb/feature/whole_image_model.h"
 #include "placedb/storage/folder.h"
+#include "placedb/storage/whole_image_model_file.h"
 #include "placedb/util/check.h"
 #include "placedb/util/fair_shared_mutex.h"
 #include "placedb/util/file_io.h"
@@ -347,6 +350,34 @@ std::optional<BowIndex> OpenBowIndex(const std::string& dir, const Database& db,
   return BowIndex::FromMapped(map(bow_name), (fs::path(dir) / bow_name).string(), vocabulary, db);
 }
 
+// The HOG whole-image channel's model, named by the manifest; nullptr for
+// a database without that channel. Damage is CorruptDatabase.
+std::shared_ptr<const WholeImageModel> OpenWholeImageModel(const std::string& dir,
+                                                           const Database& db,
+                                                           const ExtractorOptions& features) {
+  const WholeImageOptions& w = features.whole_image;
+  if (!w.enabled || w.kind != WholeImageKind::kHog) return nullptr;
+  const nlohmann::json& manifest = db.info();
+  const JsonReader m(manifest, dir + "/manifest.json", JsonOrigin::kDatabaseFile);
+  if (m.String("whole_image_model") != kWholeImageModelFile)
+    m.Fail("whole_image_model", "is not the whole-image model's file name");
+  const std::shared_ptr<const MappedFile> file = DirectoryHandle(dir).MapFile(kWholeImageModelFile);
+  const std::string shown = (fs::path(dir) / kWholeImageModelFile).string();
+  if (!file) {
+    PLACEDB_THROW_CORRUPT("database ", dir, " is incomplete: ", kWholeImageModelFile,
+                          " (named by its manifest) is missing");
+  }
+  std::shared_ptr<const WholeImageModel> model = ReadWholeImageModel(file, shown);
+  if (model->width() != w.hog_width || model->height() != w.hog_height ||
+      model->output_dims() != w.hog_dims) {
+    PLACEDB_THROW_CORRUPT(shown, " is for ", model->width(), " x ", model->height(),
+                          " thumbnails and ", model->output_dims(),
+                          " values, the manifest's settings for ", w.hog_width, " x ",
+                          w.hog_height, " and ", w.hog_dims, " (corrupted database)");
+  }
+  return model;
+}
+
 // Removes what killed writers left in the database folder `dir`, whose
 // current generation is `db` (the whole database); the rule is
 // storage/folder.h's. The caller holds the folder's lock.
@@ -478,7 +509,7 @@ PlaceDatabase PlaceDatabase::Open(const std::string& dir, const OpenOptions& opt
             : std::string("have none"),
         " (corrupted database)");
   }
-  impl->extractor = FeatureExtractor::Create(features);
+  impl->extractor = FeatureExtractor::Create(features, OpenWholeImageModel(dir, db, features));
   const int threads = options.threads == 0 ? ThreadPool::HardwareThreads() : options.threads;
   if (threads > 1) impl->pool = std::make_unique<ThreadPool>(threads);
   impl->open = options;
@@ -583,6 +614,28 @@ std::vector<Keyframe> PlaceDatabase::keyframes() const {
     if (!impl_->removed[i]) keyframes.push_back(impl_->db.keyframe(i));
   }
   return keyframes;
+}
+
+std::vector<float> PlaceDatabase::WholeImageSimilarities(const FeatureSet& query) const {
+  std::shared_lock<FairSharedMutex> lock(impl_->state);
+  const Database& db = impl_->db;
+  const int dims = db.whole_image_dims();
+  if (dims == 0 || query.whole_image.empty() || impl_->keyframe_table) return {};
+  const cv::Mat& q = query.whole_image;
+  if (q.type() != CV_8SC1 || q.rows != 1 || q.cols != dims || !q.isContinuous()) {
+    PLACEDB_THROW_INVALID("a whole-image row of ", q.cols, " values (type ", q.type(),
+                          "); the database keeps 1 x ", dims, " CV_8SC1 rows");
+  }
+  std::vector<float> all(db.size());
+  placedb::WholeImageSimilarities(q.ptr<int8_t>(), db.WholeImageData(), db.size(), dims,
+                                  all.data());
+  if (impl_->num_removed == 0) return all;
+  std::vector<float> out;
+  out.reserve(db.size() - impl_->num_removed);
+  for (size_t i = 0; i < db.size(); ++i) {
+    if (!impl_->removed[i]) out.push_back(all[i]);
+  }
+  return out;
 }
 
 FeatureSet PlaceDatabase::KeyframeFeatures(int32_t id) const {
@@ -726,6 +779,16 @@ QueryResult PlaceDatabase::Query(const cv::Mat& image, const QueryOptions& optio
 
 QueryResult PlaceDatabase::Query(const FeatureSet& features, const QueryOptions& options) const {
   return Run(features, nullptr, options, 0.0);
+}
+
+QueryResult PlaceDatabase::Query(const cv::Mat& image, const QueryOptions& options,
+                                 std::vector<float>* whole_image_similarities) const {
+  PLACEDB_CHECK_OPTIONS(options);
+  Timer t;
+  const FeatureSet features = Extract(image);
+  QueryResult r = Run(features, nullptr, options, t.ElapsedMs());
+  if (whole_image_similarities) *whole_image_similarities = WholeImageSimilarities(features);
+  return r;
 }
 
 QueryResult PlaceDatabase::QueryAmong(const cv::Mat& image, const std::vector<int32_t>& keyframes,

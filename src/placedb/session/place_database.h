@@ -250,6 +250,13 @@ class PlaceDatabase {
   // The features of keyframe `id` (a copy); InvalidArgument when
   // there is no such keyframe.
   FeatureSet KeyframeFeatures(int32_t id) const;
+  // The whole-image similarity of `query` (its FeatureSet::whole_image, as
+  // Extract gives it) to every keyframe answering now, in the order of
+  // keyframes(): what SequenceMatcher::Feed over the whole map takes. Empty
+  // when the database has no whole-image channel or the query no row;
+  // InvalidArgument for a row of another size. One pass of the SIMD kernel
+  // over every row (feature/whole_image.h).
+  std::vector<float> WholeImageSimilarities(const FeatureSet& query) const;
   // The ids: range, next free id, removals.
   KeyframeIdSummary id_summary() const;
   // What `placedb info --json` prints: the manifest, its "ids" entry
@@ -288,6 +295,11 @@ class PlaceDatabase {
   // The same for features computed elsewhere (another node, another process).
   // They are validated against the database (InvalidArgument).
   QueryResult Query(const FeatureSet& features, const QueryOptions& options = QueryOptions()) const;
+  // Query(image, options), and into `*whole_image_similarities` (when not
+  // null) WholeImageSimilarities of the same query features: what
+  // SequenceMatcher::Feed(frame, similarities) takes to search the whole map.
+  QueryResult Query(const cv::Mat& image, const QueryOptions& options,
+                    std::vector<float>* whole_image_similarities) const;
   // Both restricted to the keyframes `keyframe_ids` (a partition, a
   // cluster, the recent keyframes left out of a loop-closure search): only
   // those are examined. An id that is not in the database is
