@@ -4,6 +4,8 @@
 # run, and then the README's speed tables rewritten from this run:
 #   match_bench   matching kernels vs OpenCV BFMatcher (Google Benchmark)
 #   surf_bench    our SURF (dispatched and plain) vs OpenCV SIFT and ORB
+#   sequence_bench the sequence step over the whole map vs over ranked lists,
+#                 and the HOG rows' comparison, at 10k and 100k keyframes
 #   placedb bench whole match stages vs the paper's BFMatcher loop
 #   ros_bench     the ROS nodes end to end vs the single-process query
 #   scale_bench   1k / 10k / 100k augmented keyframes: latency, memory, size,
@@ -15,6 +17,8 @@ OUT=out/bench
 mkdir -p "$OUT"
 "$BUILD_DIR/bench/match_bench" --benchmark_out="$OUT/match_bench.json" --benchmark_out_format=json
 "$BUILD_DIR/bench/surf_bench" --benchmark_out="$OUT/surf_bench.json" --benchmark_out_format=json
+"$BUILD_DIR/bench/sequence_bench" --benchmark_out="$OUT/sequence_bench.json" \
+  --benchmark_out_format=json
 "$PLACEDB" build --images data/rtabmap_loop/images --last 40 --out "$OUT/db_orb" --overwrite --quiet
 "$PLACEDB" bench --db "$OUT/db_orb" --images data/rtabmap_loop/images --first 41 --queries 0 \
   --repeat 5 --json "$OUT/placedb_bench_orb.json"

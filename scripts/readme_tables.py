@@ -333,14 +333,32 @@ def scale_table(j):
     return "\n".join(rows) + "\n\n" + note
 
 
+def sequence_table(runs):
+    """sequence_bench: the sequence step and the whole-image comparison per map size."""
+    ms = {b["name"]: b["real_time"] for b in runs}  # the benchmark's unit: ms
+    rows = ["| keyframes | sequence step, ranked lists (ms) | over the whole map (ms) | "
+            "HOG rows, 512 values (ms) | thumbnail rows, 768 values (ms) |",
+            "| --- | --- | --- | --- | --- |"]
+    for n in (10000, 100000):
+        rows.append(f"| {n} | {ms[f'BM_SequenceFeed/{n}/0']:.3f} | {ms[f'BM_SequenceFeed/{n}/1']:.3f} | "
+                    f"{ms[f'BM_HogSimilarities/{n}/512']:.3f} | {ms[f'BM_HogSimilarities/{n}/768']:.3f} |")
+    return "\n".join(rows)
+
+
 def main():
     out, readme = sys.argv[1], sys.argv[2]
-    tables = {
-        "placedb": placedb_table(load(os.path.join(out, "placedb_bench_orb.json")),
-                                 load(os.path.join(out, "placedb_bench_surf.json"))),
-        "kernels": kernel_table(benchmarks(os.path.join(out, "match_bench.json"))),
-        "surf": surf_table(benchmarks(os.path.join(out, "surf_bench.json"))),
-    }
+    tables = {}
+    if os.path.exists(os.path.join(out, "placedb_bench_orb.json")):
+        tables["placedb"] = placedb_table(load(os.path.join(out, "placedb_bench_orb.json")),
+                                          load(os.path.join(out, "placedb_bench_surf.json")))
+    if os.path.exists(os.path.join(out, "match_bench.json")):
+        tables["kernels"] = kernel_table(benchmarks(os.path.join(out, "match_bench.json")))
+    if os.path.exists(os.path.join(out, "surf_bench.json")):
+        tables["surf"] = surf_table(benchmarks(os.path.join(out, "surf_bench.json")))
+    if os.path.exists(os.path.join(out, "sequence_bench.json")):
+        tables["sequence"] = sequence_table(benchmarks(os.path.join(out, "sequence_bench.json")))
+    if not tables:
+        sys.exit(f"readme_tables: no benchmark results in {out}")
     if os.path.exists(os.path.join(out, "ros_bench.json")):
         tables["ros"] = ros_table(load(os.path.join(out, "ros_bench.json")))
     if os.path.exists(os.path.join(out, "scale_bench.json")):

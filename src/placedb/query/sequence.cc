@@ -47,6 +47,11 @@ const OptionTable<SequenceOptions>& SequenceOptions::Table() {
              "(SeqSLAM's local contrast enhancement; 0: over the whole map)",
              kCallers)
         .absent = int64_t{0};
+    t.Number("sequence_hub_frames", PLACEDB_MEMBER(O, hub_frames), OptionRange::Closed(0, 100000),
+             "sequence over the whole map: a keyframe's whole-image evidence is less its running "
+             "mean over about this many frames (a keyframe like every frame gains nothing; 0: off)",
+             kCallers)
+        .absent = int64_t{50};
     t.Rule([](const O& o) -> std::string {
       if (o.min_length > o.length) return "`sequence_min_length` is above `sequence_length`";
       if (o.min_velocity > o.max_velocity)
@@ -107,7 +112,10 @@ void SequenceMatcher::SetKeyframes(const std::vector<Keyframe>& keyframes) {
   Reset();
 }
 
-void SequenceMatcher::Reset() { frames_.clear(); }
+void SequenceMatcher::Reset() {
+  frames_.clear();
+  hub_.clear();
+}
 
 namespace {
 
@@ -181,6 +189,17 @@ QueryResult SequenceMatcher::Feed(QueryResult frame, const std::vector<float>& s
     evidence.dense[p] =
         static_cast<float>(options_.whole_image_weight * (value[p] - mean) / std::sqrt(var));
   }
+  // Less each keyframe's running mean over about hub_frames frames: a
+  // keyframe like every frame (snow, a tunnel, a bland wall) gains nothing.
+  if (options_.hub_frames > 0) {
+    if (hub_.size() != n) hub_.assign(n, 0.0f);
+    const auto a = static_cast<float>(1.0 / static_cast<double>(options_.hub_frames));
+    for (size_t p = 0; p < n; ++p) {
+      const float z = evidence.dense[p];
+      evidence.dense[p] = z - hub_[p];
+      hub_[p] += a * (z - hub_[p]);
+    }
+  }
   for (const auto& [p, score] : evidence.entries) evidence.dense[static_cast<size_t>(p)] += score;
   frames_.push_front(std::move(evidence));
   while (frames_.size() > static_cast<size_t>(options_.length)) frames_.pop_back();
@@ -190,14 +209,6 @@ QueryResult SequenceMatcher::Feed(QueryResult frame, const std::vector<float>& s
 QueryResult SequenceMatcher::Decide(QueryResult frame) {
   const size_t h = frames_.size();
   const int64_t n = static_cast<int64_t>(order_.size());
-  // A frame's evidence at a position: its dense row when it has one (the
-  // whole map), else its entries.
-  auto at = [&](size_t k, int64_t p) -> double {
-    const FrameEvidence& f = frames_[k];
-    if (p < 0 || p >= n) return 0.0;
-    if (!f.dense.empty()) return f.dense[static_cast<size_t>(p)];
-    return f.Lookup(p);
-  };
   const bool dense = std::any_of(frames_.begin(), frames_.end(),
                                  [](const FrameEvidence& f) { return !f.dense.empty(); });
 
@@ -210,14 +221,89 @@ QueryResult SequenceMatcher::Decide(QueryResult frame) {
           static_cast<int64_t>(std::lround(velocities_[vi] * static_cast<double>(k)));
     }
   }
-  // The ends scored: every position over the whole map, else those some
-  // held frame's evidence reaches; each once per velocity.
-  std::vector<std::pair<int64_t, size_t>> ends;  // (end position, velocity index)
+  const double mid = 0.5 * (options_.min_velocity + options_.max_velocity);
+  double best_sum = -std::numeric_limits<double>::infinity();
+  int64_t best_end = -1;
+  size_t best_v = 0, best_used = 0;
+  // The best path: the largest sum; ties: the lower end position, then the
+  // velocity nearer the middle of the range, then the slower.
+  auto consider = [&](int64_t j, size_t vi, double sum, size_t used) {
+    const bool better =
+        sum > best_sum ||
+        (sum == best_sum &&
+         (j < best_end || (j == best_end && std::abs(velocities_[vi] - mid) <
+                                                std::abs(velocities_[best_v] - mid))));
+    if (best_end < 0 || better) {
+      best_sum = sum;
+      best_end = j;
+      best_v = vi;
+      best_used = used;
+    }
+  };
+  const size_t m0 = std::min(h, static_cast<size_t>(options_.min_length));
   if (dense) {
-    ends.reserve(static_cast<size_t>(n) * velocities_.size());
-    for (int64_t j = 0; j < n; ++j)
-      for (size_t vi = 0; vi < velocities_.size(); ++vi) ends.emplace_back(j, vi);
+    // Every end x velocity. Over the whole map every keyframe has
+    // standardised evidence in every frame, and a path's newest m frames are
+    // compared by their sum over sqrt(m) (what a sum of m independent
+    // standard scores is scaled by): a short path of chance highs does not
+    // beat a long consistent one. Row by row, so that the work is h x
+    // velocities passes over the map.
+    std::vector<std::vector<float>> materialised;
+    std::vector<const float*> rows(h);
+    for (size_t k = 0; k < h; ++k) {
+      if (!frames_[k].dense.empty()) {
+        rows[k] = frames_[k].dense.data();
+        continue;
+      }
+      materialised.emplace_back(static_cast<size_t>(n), 0.0f);  // a frame fed without similarities
+      for (const auto& [p, score] : frames_[k].entries)
+        materialised.back()[static_cast<size_t>(p)] = static_cast<float>(score);
+      rows[k] = materialised.back().data();
+    }
+    // Single precision: sums of at most 100 frames of evidence, and twice the
+    // values per vector instruction.
+    std::vector<float> prefix(static_cast<size_t>(n)), rank(static_cast<size_t>(n));
+    for (size_t vi = 0; vi < velocities_.size(); ++vi) {
+      std::fill(prefix.begin(), prefix.end(), 0.0f);
+      std::fill(rank.begin(), rank.end(), -std::numeric_limits<float>::infinity());
+      for (size_t k = 0; k < h; ++k) {
+        // End j was at j - off k frames back: inside the map for j in [lo, hi).
+        const int64_t off = offset[vi * h + k];
+        const int64_t lo = std::max<int64_t>(0, off), hi = std::min<int64_t>(n, n + off);
+        const float* row = rows[k];
+        for (int64_t j = lo; j < hi; ++j) prefix[static_cast<size_t>(j)] += row[j - off];
+        if (k + 1 < m0) continue;
+        const float scale = 1.0f / std::sqrt(static_cast<float>(k + 1));
+        float* rk = rank.data();
+        const float* pf = prefix.data();
+        for (size_t j = 0; j < static_cast<size_t>(n); ++j) {  // vectorised: a max
+          const float r = pf[j] * scale;
+          rk[j] = rk[j] < r ? r : rk[j];
+        }
+      }
+      // This velocity's best end (the first of equal ones), then the rule.
+      if (n == 0) continue;
+      size_t top = 0;
+      for (size_t j = 1; j < static_cast<size_t>(n); ++j) {
+        if (rank[j] > rank[top]) top = j;
+      }
+      // Its frames used: the first m whose rank is the best, walked again
+      // with the same sums.
+      float sum = 0.0f;
+      size_t used = h;
+      for (size_t k = 0; k < h; ++k) {
+        const int64_t p = static_cast<int64_t>(top) - offset[vi * h + k];
+        if (p >= 0 && p < n) sum += rows[k][p];
+        if (k + 1 >= m0 && sum * (1.0f / std::sqrt(static_cast<float>(k + 1))) == rank[top]) {
+          used = k + 1;
+          break;
+        }
+      }
+      consider(static_cast<int64_t>(top), vi, rank[top], used);
+    }
   } else {
+    // The ends some held frame's evidence reaches; each once per velocity.
+    std::vector<std::pair<int64_t, size_t>> ends;  // (end position, velocity index)
     for (size_t k = 0; k < h; ++k) {
       for (const auto& e : frames_[k].entries) {
         for (size_t vi = 0; vi < velocities_.size(); ++vi) {
@@ -228,41 +314,20 @@ QueryResult SequenceMatcher::Decide(QueryResult frame) {
     }
     std::sort(ends.begin(), ends.end());
     ends.erase(std::unique(ends.begin(), ends.end()), ends.end());
-  }
-  const double mid = 0.5 * (options_.min_velocity + options_.max_velocity);
-  double best_sum = -std::numeric_limits<double>::infinity();
-  int64_t best_end = -1;
-  size_t best_v = 0, best_used = 0;
-  const size_t m0 = std::min(h, static_cast<size_t>(options_.min_length));
-  for (const auto& [j, vi] : ends) {
-    // The path's best mean over its newest m frames, m from min_length up:
-    // a path that began when the camera came back to a mapped stretch is
-    // not diluted by the frames before.
-    // Over the whole map every keyframe has standardised evidence in every
-    // frame, and the newest m frames are compared by their sum over sqrt(m)
-    // (what a sum of m independent standard scores is scaled by): a short
-    // path of chance highs does not beat a long consistent one.
-    double sum = -std::numeric_limits<double>::infinity(), prefix = 0.0, rank_of_best = sum;
-    size_t used = h;
-    for (size_t k = 0; k < h; ++k) {
-      prefix += at(k, j - offset[vi * h + k]);
-      const double m = static_cast<double>(k + 1);
-      const double rank = dense ? prefix / std::sqrt(m) : prefix / m;
-      if (k + 1 >= m0 && rank > rank_of_best) {
-        rank_of_best = rank;
-        sum = prefix / m * static_cast<double>(h);
-        used = k + 1;
+    for (const auto& [j, vi] : ends) {
+      // The path's best mean over its newest m frames, m from min_length up:
+      // a path that began when the camera came back to a mapped stretch is
+      // not diluted by the frames before.
+      double sum = -1.0, prefix = 0.0;
+      size_t used = h;
+      for (size_t k = 0; k < h; ++k) {
+        prefix += frames_[k].Lookup(j - offset[vi * h + k]);
+        if (k + 1 >= m0 && prefix / static_cast<double>(k + 1) * static_cast<double>(h) > sum) {
+          sum = prefix / static_cast<double>(k + 1) * static_cast<double>(h);
+          used = k + 1;
+        }
       }
-    }
-    if (dense) sum = rank_of_best;  // paths compared by it; the score reported below
-    // Ties: the lower end position (ends are visited in position order),
-    // then the velocity nearer the middle of the range.
-    if (sum > best_sum || (sum == best_sum && j == best_end &&
-                           std::abs(velocities_[vi] - mid) < std::abs(velocities_[best_v] - mid))) {
-      best_sum = sum;
-      best_end = j;
-      best_v = vi;
-      best_used = used;
+      consider(j, vi, sum, used);
     }
   }
 

@@ -90,6 +90,13 @@ struct SequenceOptions {
   // enhancement) instead of the whole map when above 0. Range [0, 100000].
   // Default 0.
   int contrast_window = 0;
+  // Over the whole map: a keyframe's standardised whole-image evidence is
+  // less its exponential running mean over about `hub_frames` frames (since
+  // the last Reset), so that a keyframe like every frame (a hub: snow, a
+  // tunnel, a bland wall) gains nothing from it. A camera that stands still
+  // for about this many frames sees its own keyframe's evidence fade the
+  // same way. 0: off. Range [0, 100000]. Default 50 (five default lengths).
+  int hub_frames = 50;
 
   static const OptionTable<SequenceOptions>& Table();
   std::string Check() const;
@@ -142,6 +149,7 @@ class SequenceMatcher {
   std::vector<int32_t> table_position_;            // table index -> index in order_
   std::vector<double> velocities_;
   std::deque<FrameEvidence> frames_;  // newest first
+  std::vector<float> hub_;            // by position: the running means of hub_frames
 };
 
 }  // namespace placedb

@@ -218,11 +218,15 @@ std::pair<int32_t, double> BruteForce(const std::vector<Keyframe>& table,
   std::vector<int> pos(static_cast<size_t>(n));
   for (int t = 0; t < n; ++t) pos[static_cast<size_t>(t)] = table[static_cast<size_t>(t)].id - 1;
   const size_t h = std::min(frames.size(), static_cast<size_t>(o.length));
-  std::vector<std::vector<double>> e(h, std::vector<double>(static_cast<size_t>(n), 0.0));
-  for (size_t k = 0; k < h; ++k) {
-    const DenseFrame& f = frames[frames.size() - 1 - k];
-    std::vector<double> v(static_cast<size_t>(n), std::nan(""));
-    for (int t = 0; t < n; ++t) v[static_cast<size_t>(pos[static_cast<size_t>(t)])] = f.similarity[static_cast<size_t>(t)];
+  // Every frame's evidence from the first (the hub means run over all of
+  // them), newest first.
+  std::vector<std::vector<double>> all;
+  std::vector<double> hub(static_cast<size_t>(n), 0.0);
+  for (const DenseFrame& f : frames) {
+    std::vector<double> v(static_cast<size_t>(n), std::nan("")), z(static_cast<size_t>(n), 0.0);
+    for (int t = 0; t < n; ++t) {
+      v[static_cast<size_t>(pos[static_cast<size_t>(t)])] = f.similarity[static_cast<size_t>(t)];
+    }
     for (int p = 0; p < n; ++p) {
       if (!std::isfinite(v[static_cast<size_t>(p)])) continue;
       const int lo = o.contrast_window > 0 ? std::max(0, p - o.contrast_window) : 0;
@@ -236,10 +240,22 @@ std::pair<int32_t, double> BruteForce(const std::vector<Keyframe>& table,
       }
       if (c < 2) continue;
       const double mean = s / c, var = ss / c - mean * mean;
-      if (var > 1e-12) e[k][static_cast<size_t>(p)] = o.whole_image_weight * (v[static_cast<size_t>(p)] - mean) / std::sqrt(var);
+      if (var > 1e-12) {
+        z[static_cast<size_t>(p)] =
+            o.whole_image_weight * (v[static_cast<size_t>(p)] - mean) / std::sqrt(var);
+      }
     }
-    for (const auto& [id, score] : f.local) e[k][static_cast<size_t>(id - 1)] += score;
+    if (o.hub_frames > 0) {
+      for (size_t p = 0; p < z.size(); ++p) {
+        const double before = z[p];
+        z[p] -= hub[p];
+        hub[p] += (before - hub[p]) / o.hub_frames;
+      }
+    }
+    for (const auto& [id, score] : f.local) z[static_cast<size_t>(id - 1)] += score;
+    all.insert(all.begin(), z);
   }
+  const std::vector<std::vector<double>> e(all.begin(), all.begin() + static_cast<long>(h));
   double best_rank = -1e300, best_score = 0;
   int32_t best_id = -1;
   for (int j = 0; j < n; ++j) {
@@ -293,10 +309,11 @@ TEST(SequenceMatcherTest, OverTheWholeMapEveryPathIsScoredCausally) {
     if (t == 7) f.similarity[5] = std::nanf("");  // a keyframe left out
     frames.push_back(f);
   }
-  for (const int window : {0, 25}) {
+  for (const auto& [window, hub] : {std::pair{0, 0}, {25, 0}, {0, 50}, {25, 7}}) {
     SequenceOptions o;
     o.whole_image_weight = 10.0;
     o.contrast_window = window;
+    o.hub_frames = hub;
     SequenceMatcher matcher(table, o);
     int right = 0;
     for (size_t t = 0; t < frames.size(); ++t) {
@@ -311,7 +328,7 @@ TEST(SequenceMatcherTest, OverTheWholeMapEveryPathIsScoredCausally) {
       ASSERT_TRUE(r.sequence.has_value());
       const std::vector<DenseFrame> so_far(frames.begin(), frames.begin() + static_cast<long>(t) + 1);
       const auto [id, score] = BruteForce(table, so_far, o);
-      EXPECT_EQ(r.sequence->keyframe_id, id) << "frame " << t << ", window " << window;
+      EXPECT_EQ(r.sequence->keyframe_id, id) << "frame " << t << ", window " << window << ", hub " << hub;
       EXPECT_NEAR(r.sequence->score, score, 1e-4) << "frame " << t;
       if (t >= 5) {
         EXPECT_EQ(r.decided_by, "sequence");
@@ -319,7 +336,7 @@ TEST(SequenceMatcherTest, OverTheWholeMapEveryPathIsScoredCausally) {
       }
     }
     EXPECT_EQ(matcher.frames_held(), 10u);
-    EXPECT_GE(right, 33) << "window " << window;  // of 35
+    EXPECT_GE(right, 33) << "window " << window << ", hub " << hub;  // of 35
   }
   SequenceOptions o;
   o.whole_image_weight = 10.0;
@@ -344,6 +361,40 @@ TEST(SequenceMatcherTest, OverTheWholeMapEveryPathIsScoredCausally) {
     EXPECT_EQ(a.sequence, b.sequence);
     EXPECT_EQ(a.ranked.front().keyframe_id, b.ranked.front().keyframe_id);
   }
+}
+
+// A keyframe like every frame (a hub: its similarity is high whatever the
+// camera sees) holds the standing-still path without hub_frames; with it,
+// its evidence fades within about hub_frames frames and the camera's true
+// path answers.
+TEST(SequenceMatcherTest, AKeyframeLikeEveryFrameFadesWithHubFrames) {
+  const std::vector<Keyframe> table = Keyframes(200);
+  std::mt19937 rng(5);
+  std::normal_distribution<float> noise(0.0f, 0.05f);
+  std::vector<std::vector<float>> frames;
+  for (int t = 0; t < 80; ++t) {
+    std::vector<float> s(200);
+    for (float& v : s) v = 0.3f + noise(rng);
+    s[static_cast<size_t>(10 + t)] += 0.15f;  // the camera passes 11, 12, ... (ids)
+    s[150] += 0.3f;                           // id 151, like every frame
+    frames.push_back(s);
+  }
+  auto answers = [&](int hub_frames) {
+    SequenceOptions o;
+    o.whole_image_weight = 10.0;
+    o.hub_frames = hub_frames;
+    SequenceMatcher matcher(table, o);
+    int truth = 0, hub = 0;
+    for (int t = 0; t < 80; ++t) {
+      const QueryResult r = matcher.Feed(QueryResult(), frames[static_cast<size_t>(t)]);
+      if (t < 60) continue;
+      truth += r.sequence->keyframe_id == 11 + t;
+      hub += r.sequence->keyframe_id == 151;
+    }
+    return std::pair{truth, hub};
+  };
+  EXPECT_EQ(answers(0).second, 20);
+  EXPECT_EQ(answers(20).first, 20);
 }
 
 }  // namespace
