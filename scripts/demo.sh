@@ -118,7 +118,8 @@ done
 echo
 echo "== 7b. places that change: the whole-image channels and the sequence over the whole map, alone and"
 echo "   together, on the Nordland slice (64x32: 400 summer keyframes, the 400 winter frames as queries)"
-echo "   and on the loop (database 1-40, queries 41-84); written into README.md (\"Places that change\")."
+echo "   and on the loop (database 1-40, queries 41-84), beside the classic HOG and SeqSLAM on the same"
+echo "   frames (eval --baseline both); written into README.md (\"Places that change\")."
 CHANGE="$OUT/places_that_change"
 mkdir -p "$CHANGE"
 NORD=data/nordland64_slice
@@ -136,7 +137,7 @@ for name in nordland rtabmap; do
     "$PLACEDB" eval --db "$CHANGE/db_${name}_$1" "${queries[@]}" --all --quiet --sequence "${@:3}" \
       --json "$CHANGE/$name.$2.json" >/dev/null 2>&1
   }
-  change thumbnail thumb
+  change thumbnail thumb --baseline both
   change thumbnail thumb.w150 --whole-image-weight 150
   change hog hog.w150 --whole-image-weight 150
   change thumbnail thumb.seq10 --sequence-whole-image-weight 10

@@ -117,6 +117,19 @@ def change_table(d):
                     f"{single['average_precision']:.3f} / "
                     f"{e['precision_recall']['average_precision']:.3f}"]
         rows.append(row)
+    # The classic methods on the same frames (eval --baseline both, with the
+    # first setting): HOG answers single frames, SeqSLAM sequences.
+    for key, label, column in (("hog", "HOG of the whole frame (classic: `eval --baseline hog`)", 0),
+                               ("seqslam", "SeqSLAM, 10 frames (classic: `eval --baseline seqslam`)", 1)):
+        row = [label]
+        for name, _ in DATASETS:
+            b = load(os.path.join(d, f"{name}.{SETTINGS[0][0]}.json"))["baselines"][key]
+            recall, auc = f"{b['recall_at_1']:.3f}", f"{b['average_precision']:.3f}"
+            if column == 0:
+                row += [recall, "", f"{auc} / -"]
+            else:
+                row += ["", recall, f"- / {auc}"]
+        rows.append(row)
     table = ["| " + " | ".join(head) + " |", "| " + " | ".join("---" for _ in head) + " |"]
     table += ["| " + " | ".join(r) + " |" for r in rows]
     return "\n".join(table)

@@ -143,6 +143,54 @@ void ReportEvaluationDoubts(const std::vector<std::string>& doubts, bool strict)
   for (const std::string& d : doubts) spdlog::warn("meaningless evaluation: {}", d);
 }
 
+namespace {
+
+// The whole frames of `keyframes` for the classic baselines: each one's
+// stored image when it is the whole frame (not cropped), else its source
+// image. InvalidArgument naming the first keyframe that has neither.
+std::vector<cv::Mat> KeyframeWholeFrames(const PlaceDatabase& db,
+                                         const std::vector<Keyframe>& keyframes,
+                                         const ImageReadOptions& read) {
+  std::vector<cv::Mat> images;
+  images.reserve(keyframes.size());
+  for (const Keyframe& k : keyframes) {
+    const std::string stored = k.crop_channel < 0 ? db.StoredImagePath(k) : std::string();
+    if (!stored.empty()) {
+      DecodedImage d = TryReadImageFile(stored, read);
+      if (d.error.empty()) {
+        images.push_back(std::move(d.image));
+        continue;
+      }
+    }
+    DecodedImage d = TryReadImageFile(k.source, read);
+    if (!d.error.empty()) {
+      PLACEDB_THROW_INVALID("the baselines need every keyframe's whole frame: keyframe ", k.id,
+                            " has ", k.crop_channel >= 0 ? "a cropped stored image" :
+                            stored.empty() ? "no stored image" : "an unreadable stored image",
+                            " and its source cannot be read (", d.error, ")");
+    }
+    images.push_back(std::move(d.image));
+  }
+  return images;
+}
+
+// recall@1, recall@5 and precision-recall of answers judged per query.
+EvalReport::SingleFrame Judged(int num_correct, int num_correct_at_5,
+                               const std::vector<ScoredAnswer>& answers, int answerable,
+                               double threshold) {
+  EvalReport::SingleFrame f;
+  f.num_correct = num_correct;
+  f.num_correct_at_5 = num_correct_at_5;
+  if (answerable > 0) {
+    f.recall_at_1 = static_cast<double>(num_correct) / answerable;
+    f.recall_at_5 = static_cast<double>(num_correct_at_5) / answerable;
+  }
+  f.precision_recall = ComputePrecisionRecall(answers, answerable, threshold);
+  return f;
+}
+
+}  // namespace
+
 EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_frames,
                     const GroundTruth& truth, const EvalOptions& eval_options,
                     const QueryOptions& query_options, bool check_doubts) {
@@ -205,6 +253,39 @@ EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_fra
           eval_options.num_queries, queries.size());
     }
   }
+  // The classic baselines on the same queries (their answers judged as the
+  // frames' own are).
+  std::optional<ClassicBaselines> classic;
+  const bool hog = eval_options.baseline == EvalBaseline::kHog ||
+                   eval_options.baseline == EvalBaseline::kBoth;
+  const bool seqslam = eval_options.baseline == EvalBaseline::kSeqSlam ||
+                       eval_options.baseline == EvalBaseline::kBoth;
+  struct BaselineTally {
+    int correct = 0, correct_at_5 = 0;
+    std::vector<ScoredAnswer> answers;
+  };
+  std::map<std::string, BaselineTally> tallies;
+  if (eval_options.baseline != EvalBaseline::kNone) {
+    const std::vector<Keyframe> answering = db.keyframes();
+    classic.emplace(answering,
+                    KeyframeWholeFrames(db, answering,
+                                        queries.empty() ? ImageReadOptions() : queries.front().read));
+  }
+  const auto tally = [&](const char* name, const Frame& q, const BaselineAnswer& a) {
+    BaselineTally& t = tallies[name];
+    int rank = 0;
+    for (size_t r = 0; r < a.ranked.size() && rank == 0; ++r) {
+      const std::optional<Keyframe> k = db.FindKeyframe(a.ranked[r]);
+      if (k && truth.IsCorrect(q, *k)) rank = static_cast<int>(r) + 1;
+    }
+    t.correct += rank == 1;
+    t.correct_at_5 += rank >= 1 && rank <= 5;
+    ScoredAnswer s;
+    s.has_answer = !a.ranked.empty();
+    s.score = a.score;
+    s.correct = rank == 1;
+    t.answers.push_back(s);
+  };
   double coverage_sum = 0.0;
   for (const Frame& q : queries) {
     QueryRecord rec;
@@ -220,6 +301,8 @@ EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_fra
       progress.Advance();
       continue;
     }
+    if (hog) tally("hog", q, classic->Hog(image));
+    if (seqslam) tally("seqslam", q, classic->SeqSlam(image));
     std::vector<float> similarities;
     rec.result = db.Query(image, options, sequence && whole_map ? &similarities : nullptr);
     if (sequence) {
@@ -295,6 +378,11 @@ EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_fra
     report.single_frame = single;
     if (report.num_queries > 0) report.sequence_ms_mean = sequence_ms / report.num_queries;
   }
+  for (const auto& [name, t] : tallies) {
+    // Every answer is given: the threshold is below any score.
+    report.baselines[name] = Judged(t.correct, t.correct_at_5, t.answers, report.num_answerable,
+                                    -std::numeric_limits<double>::infinity());
+  }
   report.latency_ms = ComputeLatencyStats(latency);
   report.extract_ms = ComputeLatencyStats(extract);
   report.match_ms = ComputeLatencyStats(match);
@@ -323,6 +411,17 @@ nlohmann::json PointJson(const PrPoint& p) {
           {"precision", p.precision},
           {"recall", p.recall},
           {"answered", p.answered}};
+}
+// A side's answers judged on their own: the frames' own beside a
+// sequence's, a baseline's.
+nlohmann::json FrameJson(const EvalReport::SingleFrame& f) {
+  return {{"num_correct", f.num_correct},
+          {"num_correct_at_5", f.num_correct_at_5},
+          {"recall_at_1", f.recall_at_1},
+          {"recall_at_5", f.recall_at_5},
+          {"average_precision", f.precision_recall.average_precision},
+          {"recall_at_full_precision", f.precision_recall.recall_at_full_precision},
+          {"at_threshold", PointJson(f.precision_recall.at_threshold)}};
 }
 }  // namespace
 
@@ -361,14 +460,7 @@ nlohmann::json EvalReportToJson(const EvalReport& r) {
   j["reduction_vs_full"] = r.reduction_vs_full;
   j["truth"] = r.truth;
   if (r.single_frame) {
-    const EvalReport::SingleFrame& f = *r.single_frame;
-    j["single_frame"] = {{"num_correct", f.num_correct},
-                         {"num_correct_at_5", f.num_correct_at_5},
-                         {"recall_at_1", f.recall_at_1},
-                         {"recall_at_5", f.recall_at_5},
-                         {"average_precision", f.precision_recall.average_precision},
-                         {"recall_at_full_precision", f.precision_recall.recall_at_full_precision},
-                         {"at_threshold", PointJson(f.precision_recall.at_threshold)}};
+    j["single_frame"] = FrameJson(*r.single_frame);
     j["sequence"] = {{"decided", r.num_decided_by_sequence},
                      {"min_score", r.sequence_min_score},
                      {"feed_ms_mean", r.sequence_ms_mean}};
@@ -376,6 +468,8 @@ nlohmann::json EvalReportToJson(const EvalReport& r) {
     j["single_frame"] = nullptr;
     j["sequence"] = nullptr;
   }
+  j["baselines"] = nlohmann::json::object();
+  for (const auto& [name, f] : r.baselines) j["baselines"][name] = FrameJson(f);
   nlohmann::json queries = nlohmann::json::array();
   for (const QueryRecord& q : r.queries) {
     nlohmann::json e;
@@ -439,6 +533,22 @@ std::string FormatEvalReport(const EvalReport& r) {
     out += fmt::format("  PR AUC            {:>10}   (average precision over the threshold)\n",
                        ratio(pr.average_precision));
     out += fmt::format("  recall @ P=1      {:>10}\n", ratio(pr.recall_at_full_precision));
+  }
+  if (!r.baselines.empty()) {
+    // The classic methods on the same queries (every answer given).
+    std::string head, r1, r5, auc, full;
+    for (const auto& [name, f] : r.baselines) {
+      head += fmt::format(" {:>10}", name == "hog" ? "HOG" : "SeqSLAM");
+      r1 += fmt::format(" {:>10}", ratio(f.recall_at_1));
+      r5 += fmt::format(" {:>10}", ratio(f.recall_at_5));
+      auc += fmt::format(" {:>10}", ratio(f.precision_recall.average_precision));
+      full += fmt::format(" {:>10}", ratio(f.precision_recall.recall_at_full_precision));
+    }
+    out += fmt::format("  baselines, same queries{}\n", head);
+    out += fmt::format("  recall@1               {}\n", r1);
+    out += fmt::format("  recall@5               {}\n", r5);
+    out += fmt::format("  PR AUC                 {}\n", auc);
+    out += fmt::format("  recall @ P=1           {}\n", full);
   }
   out += fmt::format("  latency ms        {:>10.2f}   mean  (p50 {:.2f}, p99 {:.2f})\n",
                      r.latency_ms.mean, r.latency_ms.p50, r.latency_ms.p99);

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "placedb/eval/classic_baselines.h"
 #include "placedb/eval/ground_truth.h"
 #include "placedb/eval/metrics.h"
 #include "placedb/query/sequence.h"
@@ -38,6 +39,11 @@ struct EvalOptions {
   // Refuse, instead of warning about, an evaluation that cannot mean
   // anything (EvaluationDoubts). Default false.
   bool strict = false;
+  // The classic whole-image methods (eval/classic_baselines.h) computed on
+  // the same queries against the keyframes' whole frames (their stored
+  // images, or their sources when the stored ones are cropped), reported
+  // beside placedb's answers. Default kNone.
+  EvalBaseline baseline = EvalBaseline::kNone;
 
   // The options' names, defaults, ranges and help (util/option_table.h).
   static const OptionTable<EvalOptions>& Table();
@@ -105,6 +111,9 @@ struct EvalReport {
     PrecisionRecall precision_recall;
   };
   std::optional<SingleFrame> single_frame;
+  // With EvalOptions::baseline: "hog" and/or "seqslam", judged as the
+  // single-frame answers are (their score: eval/classic_baselines.h).
+  std::map<std::string, SingleFrame> baselines;
   int num_decided_by_sequence = 0;
   double sequence_min_score = 0.0;
   double sequence_ms_mean = 0.0;  // SequenceMatcher::Feed per frame

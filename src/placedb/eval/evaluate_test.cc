@@ -595,5 +595,68 @@ TEST(EvaluationDoubtsTest, NamesTruthThatJudgesNothingAndNothingAnswerable) {
   EXPECT_NE(unanswerable[0].find("none of the 1 queries has a true match"), std::string::npos);
 }
 
+// The classic baselines on the same queries: on the Nordland slice's first
+// 60 frames (64 x 32), summer queries against the summer map find
+// themselves with HOG (cosine 1) and with SeqSLAM once its lines hold a few
+// frames; winter queries are reported beside placedb's answers; a map whose
+// stored images are cropped and whose sources are gone is refused in one
+// line; without --baseline there are none.
+TEST(EvaluateTest, ClassicBaselinesBesideTheAnswers) {
+  TempDir tmp;
+  const std::string nordland = PLACEDB_DATA_DIR "/nordland64_slice";
+  BuildDatabase(ListImageFolder(nordland + "/summer", 1, 60), Defaults(), tmp.db(),
+                "nordland summer 1..60");
+  PlaceDatabase db = PlaceDatabase::Open(tmp.db());
+  const GroundTruth truth =
+      GroundTruth::FromMatchList(ReadMatchTruth(nordland + "/ground_truth.csv"));
+  EvalOptions eval = AllQueries();
+  eval.baseline = EvalBaseline::kBoth;
+  const EvalReport self =
+      Evaluate(db, ListImageFolder(nordland + "/summer", 1, 60), truth, eval, QueryOptions(), false);
+  ASSERT_EQ(self.baselines.size(), 2u);
+  EXPECT_EQ(self.baselines.at("hog").num_correct, 60);
+  EXPECT_GE(self.baselines.at("seqslam").num_correct, 50);  // contrast enhancement blurs it
+  const EvalReport r =
+      Evaluate(db, ListImageFolder(nordland + "/winter", 1, 60), truth, eval, QueryOptions());
+  EXPECT_EQ(r.num_queries, 60);
+  for (const char* name : {"hog", "seqslam"}) {
+    const EvalReport::SingleFrame& b = r.baselines.at(name);
+    EXPECT_EQ(b.recall_at_1, b.num_correct / 60.0) << name;
+    EXPECT_LE(b.num_correct, b.num_correct_at_5) << name;
+    EXPECT_EQ(b.precision_recall.at_threshold.answered, 60) << name;  // every answer given
+  }
+  const nlohmann::json j = EvalReportToJson(r);
+  EXPECT_EQ(j["baselines"]["hog"]["num_correct"], r.baselines.at("hog").num_correct);
+  EXPECT_NE(FormatEvalReport(r).find("SeqSLAM"), std::string::npos);
+  eval.baseline = EvalBaseline::kNone;
+  const EvalReport none =
+      Evaluate(db, ListImageFolder(nordland + "/winter", 1, 10), truth, eval, QueryOptions());
+  EXPECT_TRUE(none.baselines.empty());
+  EXPECT_TRUE(EvalReportToJson(none)["baselines"].empty());
+
+  // Cropped stored images whose sources are gone: a map of copies of
+  // rtabmap frames, built with the paper's crop, the copies then removed.
+  const std::string copy = tmp.Path("copies");
+  fs::create_directories(copy);
+  for (int i = 1; i <= 8; ++i) {
+    fs::copy_file(testing_util::RtabmapImage(i), copy + "/" + std::to_string(100 + i) + ".jpg");
+  }
+  BuildOptions cropped = Defaults();
+  cropped.crop = CropMode::kChroma;
+  BuildDatabase(ListImageFolder(copy, 1, 0), cropped, tmp.Path("cropped"), "copies");
+  PlaceDatabase moved = PlaceDatabase::Open(tmp.Path("cropped"));
+  size_t crops = 0;
+  for (const Keyframe& k : moved.keyframes()) crops += k.crop_channel >= 0;
+  ASSERT_GT(crops, 0u);
+  fs::remove_all(copy);
+  eval.baseline = EvalBaseline::kHog;
+  EXPECT_TRUE(testing_util::ThrowsWith<InvalidArgument>(
+      [&] {
+        Evaluate(moved, ListImageFolder(kRtabmapImages, 41, 44), RtabmapTruth(), eval,
+                 QueryOptions(), false);
+      },
+      "cropped stored image and its source cannot be read"));
+}
+
 }  // namespace
 }  // namespace placedb

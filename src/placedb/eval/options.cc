@@ -59,6 +59,13 @@ const OptionTable<EvalOptions>& EvalOptions::Table() {
            "refuse an evaluation that cannot mean anything (queries that are database frames, "
            "no answerable query, truth that judges no keyframe); default: warn",
            BoolFlag::kSwitch, kCallers);
+    t.Choice("baseline", PLACEDB_MEMBER(O, baseline),
+             {EvalBaseline::kNone, EvalBaseline::kHog, EvalBaseline::kSeqSlam, EvalBaseline::kBoth},
+             ParseEvalBaseline, EvalBaselineName,
+             "also answer the same queries with the classic whole-image methods against the "
+             "keyframes' whole frames: none, hog (HOG of the whole frame), seqslam (SeqSLAM, 10 "
+             "frames) or both",
+             kCallers);
     // The command line's --quiet turns it off.
     t.Bool("progress", PLACEDB_MEMBER(O, progress), "draw a progress bar (only on a terminal)",
            BoolFlag::kValue, kPython);
@@ -141,7 +148,8 @@ const OptionTable<ExperimentOptions>& ExperimentOptions::Table() {
             "progress", "overwrite"});
     t.Nest(PLACEDB_MEMBER(O, query), QueryOptions::Table(), kCallers,
            {"verify", "prior_keyframe", "prior_pose"});
-    t.Nest(PLACEDB_MEMBER(O, eval), EvalOptions::Table(), kCallers, {"sequence", "progress"});
+    t.Nest(PLACEDB_MEMBER(O, eval), EvalOptions::Table(), kCallers,
+           {"sequence", "progress", "baseline"});
     t.Number("pictures", PLACEDB_MEMBER(O, num_pictures), OptionRange::Closed(0, 20),
              "queries drawn as match pictures, cropped vs uncropped", kCallers);
     t.Number("failures", PLACEDB_MEMBER(O, num_failures), OptionRange::Closed(0, 100),

@@ -538,6 +538,15 @@ class PlaceDbTest(unittest.TestCase):
                                       verify=False, top_k=2)
         self.assertFalse(unverified["verified"])
         self.assertTrue(all(len(q["result"]["ranked"]) <= 2 for q in unverified["queries"]))
+        # The classic methods on the same queries, beside placedb's answers.
+        self.assertEqual(rep["baselines"], {})
+        classic = placedb.evaluate(self.db, images=IMAGES, truth=TRUTH, queries=6, seed=1,
+                                   baseline="both")
+        self.assertEqual(set(classic["baselines"]), {"hog", "seqslam"})
+        for b in classic["baselines"].values():
+            self.assertTrue(0.0 <= b["recall_at_1"] <= b["recall_at_5"] <= 1.0)
+        with self.assertRaises(ValueError):
+            placedb.evaluate(self.db, images=IMAGES, truth=TRUTH, queries=1, baseline="gist")
         self.assertEqual(rep["doubts"], [])
         # The database's own frames as queries: said so, refused with strict.
         own = os.path.join(self.tmp, "own_truth.csv")
