@@ -10,6 +10,8 @@
 #include "placedb/feature/options.h"
 #include "placedb/feature/whole_image.h"
 #include "placedb/feature/whole_image_model.h"
+#include "placedb/image/chromaticity.h"
+#include "placedb/query/sequence.h"
 #include "placedb/util/check.h"
 
 namespace placedb {
@@ -39,16 +41,6 @@ EvalBaseline ParseEvalBaseline(const std::string& name) {
 namespace {
 
 constexpr int kWidth = 64;
-
-cv::Mat Gray(const cv::Mat& image) {
-  if (image.empty() || image.depth() != CV_8U) {
-    PLACEDB_THROW_INVALID("a baseline needs an 8-bit grey, BGR or BGRA image");
-  }
-  if (image.channels() == 1) return image;
-  cv::Mat gray;
-  cv::cvtColor(image, gray, image.channels() == 4 ? cv::COLOR_BGRA2GRAY : cv::COLOR_BGR2GRAY);
-  return gray;
-}
 
 // The best `most` of `score` (larger first; ties: the lower index).
 std::vector<size_t> Best(const std::vector<double>& score, size_t most) {
@@ -89,7 +81,7 @@ ClassicBaselines::ClassicBaselines(const std::vector<Keyframe>& keyframes,
 
 cv::Mat ClassicBaselines::HogRow(const cv::Mat& image) const {
   cv::Mat small;
-  cv::resize(Gray(image), small, cv::Size(kWidth, height_), 0, 0, cv::INTER_AREA);
+  cv::resize(ToGray(image), small, cv::Size(kWidth, height_), 0, 0, cv::INTER_AREA);
   const cv::HOGDescriptor hog(cv::Size(kWidth, height_), cv::Size(16, 16), cv::Size(8, 8),
                               cv::Size(8, 8), 9);
   std::vector<float> values;
@@ -134,19 +126,8 @@ BaselineAnswer ClassicBaselines::SeqSlam(const cv::Mat& image) {
       sum += std::abs(static_cast<int>(qp[c]) - static_cast<int>(t[c]));
     d[static_cast<size_t>(i)] = static_cast<double>(sum) / dims;
   }
-  std::vector<float> enhanced(static_cast<size_t>(n), 0.0f);
-  for (int i = 0; i < n; ++i) {
-    const int lo = std::max(0, i - kSeqSlamWindow), hi = std::min(n - 1, i + kSeqSlamWindow);
-    double s = 0, ss = 0;
-    for (int j = lo; j <= hi; ++j) {
-      s += d[static_cast<size_t>(j)];
-      ss += d[static_cast<size_t>(j)] * d[static_cast<size_t>(j)];
-    }
-    const double c = hi - lo + 1, mean = s / c, var = ss / c - mean * mean;
-    if (var > 1e-12)
-      enhanced[static_cast<size_t>(i)] =
-          static_cast<float>((d[static_cast<size_t>(i)] - mean) / std::sqrt(var));
-  }
+  const std::vector<double> z = StandardisedAlongMap(d, kSeqSlamWindow);
+  std::vector<float> enhanced(z.begin(), z.end());
   differences_.push_front(std::move(enhanced));
   while (differences_.size() > static_cast<size_t>(kSeqSlamLength)) differences_.pop_back();
   // Lines ending at every keyframe: the smallest mean over the velocities.

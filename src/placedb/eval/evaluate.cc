@@ -230,12 +230,17 @@ EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_fra
   QueryOptions options = query_options;
   std::optional<SequenceMatcher> sequence;
   // The rank of the first true match (1-based; 0: none).
-  const auto first_correct_rank = [&](const Frame& q, const std::vector<RankedKeyframe>& ranked) {
-    for (size_t r = 0; r < ranked.size(); ++r) {
-      const std::optional<Keyframe> k = db.FindKeyframe(ranked[r].keyframe_id);
+  const auto first_correct_id = [&](const Frame& q, const std::vector<int32_t>& ids) {
+    for (size_t r = 0; r < ids.size(); ++r) {
+      const std::optional<Keyframe> k = db.FindKeyframe(ids[r]);
       if (k && truth.IsCorrect(q, *k)) return static_cast<int>(r) + 1;
     }
     return 0;
+  };
+  const auto first_correct_rank = [&](const Frame& q, const std::vector<RankedKeyframe>& ranked) {
+    std::vector<int32_t> ids;
+    for (const RankedKeyframe& r : ranked) ids.push_back(r.keyframe_id);
+    return first_correct_id(q, ids);
   };
   EvalReport::SingleFrame single;
   double sequence_ms = 0.0;
@@ -273,11 +278,7 @@ EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_fra
   }
   const auto tally = [&](const char* name, const Frame& q, const BaselineAnswer& a) {
     BaselineTally& t = tallies[name];
-    int rank = 0;
-    for (size_t r = 0; r < a.ranked.size() && rank == 0; ++r) {
-      const std::optional<Keyframe> k = db.FindKeyframe(a.ranked[r]);
-      if (k && truth.IsCorrect(q, *k)) rank = static_cast<int>(r) + 1;
-    }
+    const int rank = first_correct_id(q, a.ranked);
     t.correct += rank == 1;
     t.correct_at_5 += rank >= 1 && rank <= 5;
     ScoredAnswer s;
@@ -369,13 +370,8 @@ EvalReport Evaluate(const PlaceDatabase& db, const std::vector<Frame>& query_fra
       answers, report.num_answerable,
       sequence ? eval_options.sequence_options.min_score : query_options.min_score);
   if (sequence) {
-    if (report.num_answerable > 0) {
-      single.recall_at_1 = static_cast<double>(single.num_correct) / report.num_answerable;
-      single.recall_at_5 = static_cast<double>(single.num_correct_at_5) / report.num_answerable;
-    }
-    single.precision_recall =
-        ComputePrecisionRecall(frame_answers, report.num_answerable, query_options.min_score);
-    report.single_frame = single;
+    report.single_frame = Judged(single.num_correct, single.num_correct_at_5, frame_answers,
+                                 report.num_answerable, query_options.min_score);
     if (report.num_queries > 0) report.sequence_ms_mean = sequence_ms / report.num_queries;
   }
   for (const auto& [name, t] : tallies) {

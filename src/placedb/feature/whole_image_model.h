@@ -3,14 +3,15 @@
 // Triggs) of a contrast-equalised thumbnail of the whole frame, projected on
 // the map's principal components and whitened.
 //
-// Why these: on the dev set of summer and winter frames
-// (../shared/data/nordland64_dev), HOG of the CLAHE-equalised thumbnail with
-// 4 x 4 cells ranked the right place first far more often than SeqSLAM's
-// patch-normalised thumbnail, and a dense RootSIFT VLAD at that size ranked
-// below both; projecting on the map's principal components with whitening
-// (regularised: each component divided by sqrt(its variance + the mean
-// variance), Jegou and Chum 2012) raised it further and makes the row small.
-// The measurements are in the README's table of places that change.
+// Why these: on the dev set of summer and winter frames (Nordland, 1 576
+// frames, not shipped; a slice is data/nordland64_slice), HOG of the
+// CLAHE-equalised thumbnail with 4 x 4 cells ranked the right place first
+// far more often than SeqSLAM's patch-normalised thumbnail, and a dense
+// RootSIFT VLAD at that size ranked below both; projecting on the map's
+// principal components with whitening (regularised: each component divided
+// by sqrt(its variance + the mean variance), Jegou and Chum 2012) raised it
+// further and makes the row small. The README's table of places that change
+// shows HOG beside the thumbnail on the slice (make demo).
 //
 // The raw descriptor: the frame in grey, resized by area to width x height
 // (multiples of 8), CLAHE (clip limit 2, 4 x 4 tiles), HOG with 16 x 16

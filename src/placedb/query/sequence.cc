@@ -117,6 +117,32 @@ void SequenceMatcher::Reset() {
   hub_.clear();
 }
 
+std::vector<double> StandardisedAlongMap(const std::vector<double>& values, int window) {
+  const size_t n = values.size();
+  std::vector<double> sum(n + 1, 0.0), squares(n + 1, 0.0), count(n + 1, 0.0);
+  for (size_t p = 0; p < n; ++p) {
+    const bool valid = std::isfinite(values[p]);
+    const double v = valid ? values[p] : 0.0;
+    sum[p + 1] = sum[p] + v;
+    squares[p + 1] = squares[p] + v * v;
+    count[p + 1] = count[p] + (valid ? 1.0 : 0.0);
+  }
+  std::vector<double> out(n, 0.0);
+  const auto w = static_cast<size_t>(std::max(0, window));
+  for (size_t p = 0; p < n; ++p) {
+    if (!std::isfinite(values[p])) continue;
+    const size_t lo = w > 0 && p > w ? p - w : 0;
+    const size_t hi = w > 0 ? std::min(n, p + w + 1) : n;
+    const double c = count[hi] - count[lo];
+    if (c < 2) continue;
+    const double mean = (sum[hi] - sum[lo]) / c;
+    const double var = (squares[hi] - squares[lo]) / c - mean * mean;
+    // A flat neighbourhood (every value equal) says nothing.
+    if (var > 1e-12) out[p] = (values[p] - mean) / std::sqrt(var);
+  }
+  return out;
+}
+
 namespace {
 
 // A frame's local evidence: its ranked keyframes' positions and scores, by
@@ -160,35 +186,12 @@ QueryResult SequenceMatcher::Feed(QueryResult frame, const std::vector<float>& s
   evidence.entries = LocalEvidence(frame, position_, options_.match_weight, kMaxEvidencePerFrame);
   // The similarities by position, standardised over the map (or over a
   // window of keyframes around each), NaN left out (0 evidence).
-  std::vector<double> value(n, 0.0), valid(n, 0.0);
-  for (size_t t = 0; t < n; ++t) {
-    const float v = similarities[t];
-    if (std::isfinite(v)) {
-      value[static_cast<size_t>(table_position_[t])] = v;
-      valid[static_cast<size_t>(table_position_[t])] = 1.0;
-    }
-  }
-  std::vector<double> sum(n + 1, 0.0), squares(n + 1, 0.0), count(n + 1, 0.0);
-  for (size_t p = 0; p < n; ++p) {
-    sum[p + 1] = sum[p] + value[p];
-    squares[p + 1] = squares[p] + value[p] * value[p];
-    count[p + 1] = count[p] + valid[p];
-  }
-  evidence.dense.assign(n, 0.0f);
-  const auto w = static_cast<int64_t>(options_.contrast_window);
-  for (size_t p = 0; p < n; ++p) {
-    if (valid[p] == 0.0) continue;
-    const size_t lo = w > 0 ? static_cast<size_t>(std::max<int64_t>(0, static_cast<int64_t>(p) - w)) : 0;
-    const size_t hi = w > 0 ? std::min(n, p + static_cast<size_t>(w) + 1) : n;
-    const double c = count[hi] - count[lo];
-    if (c < 2) continue;
-    const double mean = (sum[hi] - sum[lo]) / c;
-    const double var = (squares[hi] - squares[lo]) / c - mean * mean;
-    // A flat neighbourhood (every similarity equal) holds no evidence.
-    if (!(var > 1e-12)) continue;
-    evidence.dense[p] =
-        static_cast<float>(options_.whole_image_weight * (value[p] - mean) / std::sqrt(var));
-  }
+  std::vector<double> value(n, std::numeric_limits<double>::quiet_NaN());
+  for (size_t t = 0; t < n; ++t) value[static_cast<size_t>(table_position_[t])] = similarities[t];
+  const std::vector<double> z = StandardisedAlongMap(value, options_.contrast_window);
+  evidence.dense.resize(n);
+  for (size_t p = 0; p < n; ++p)
+    evidence.dense[p] = static_cast<float>(options_.whole_image_weight * z[p]);
   // Less each keyframe's running mean over about hub_frames frames: a
   // keyframe like every frame (snow, a tunnel, a bland wall) gains nothing.
   if (options_.hub_frames > 0) {

@@ -102,6 +102,13 @@ struct SequenceOptions {
   std::string Check() const;
 };
 
+// Each finite value minus the mean, over the (population) standard
+// deviation, of the finite values within `window` places on each side (the
+// whole vector when window is 0): SeqSLAM's local contrast enhancement.
+// NaN values, places with fewer than 2 finite values around them and flat
+// neighbourhoods give 0.
+std::vector<double> StandardisedAlongMap(const std::vector<double>& values, int window);
+
 class SequenceMatcher {
  public:
   static constexpr size_t kMaxEvidencePerFrame = 64;

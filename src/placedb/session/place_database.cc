@@ -771,10 +771,7 @@ Shortlist PlaceDatabase::BowShortlist(const FeatureSet& features,
 }
 
 QueryResult PlaceDatabase::Query(const cv::Mat& image, const QueryOptions& options) const {
-  PLACEDB_CHECK_OPTIONS(options);
-  Timer t;
-  const FeatureSet features = Extract(image);
-  return Run(features, nullptr, options, t.ElapsedMs());
+  return Query(image, options, nullptr);
 }
 
 QueryResult PlaceDatabase::Query(const FeatureSet& features, const QueryOptions& options) const {
