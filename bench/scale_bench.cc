@@ -588,8 +588,11 @@ int main(int argc, char** argv) {
   int fast_threshold = 5, bow_candidates = placedb::RetrievalOptions().bow_candidates;
   int guided_candidates = placedb::RetrievalOptions().guided_candidates;
   std::vector<int> compare_guided = {0, 10};
-  double deadline_ms = 2.0, cluster_radius = 0.5, whole_image_weight = 150.0;
-  int whole_image_candidates = 0, memory_queries = 10000, partitions = 4;
+  // The whole-image rows run the library's defaults (the baseline rows turn the channel off).
+  double deadline_ms = 2.0, cluster_radius = 0.5,
+         whole_image_weight = placedb::QueryOptions().whole_image_weight;
+  int whole_image_candidates = placedb::QueryOptions().whole_image_candidates,
+      memory_queries = 10000, partitions = 4;
   int resident_limit_mb = 768, stored_features = 0;
   int track_neighbours = placedb::BuildOptions().track_neighbours;
   std::vector<int> compare_stored = {210};
@@ -629,7 +632,7 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0, 10000.0))
       ->capture_default_str();
   app.add_option("--whole-image-candidates", whole_image_candidates,
-                 "that run's bow also matches this many keyframes most similar by thumbnail")
+                 "that run's bow also matches this many keyframes most similar by whole image")
       ->check(CLI::Range(0, 1000))
       ->capture_default_str();
   app.add_option("--memory-queries", memory_queries,

@@ -109,7 +109,8 @@ for size in $SIZES; do
     --overwrite --quiet >/dev/null 2>&1
   evalq "$db" "$HARD/$size.json"
   evalq "$db" "$HARD/$size.len5.json" --sequence-length 5
-  evalq "$db" "$HARD/$size.whole.json" --whole-image-weight 10
+  evalq "$db" "$HARD/$size.local.json" --whole-image-weight 0 --whole-image-candidates 0 \
+    --sequence-whole-image-weight 0
   "$PLACEDB" build --images "$DATA/images" --last 40 --frame-size "$size" --out "$db.fast20" \
     --upscaled-fast-threshold 0 --overwrite --quiet >/dev/null 2>&1
   evalq "$db.fast20" "$HARD/$size.fast20.json"
@@ -133,17 +134,19 @@ for name in nordland rtabmap; do
     "$PLACEDB" build "${map[@]}" --whole-image-kind "$kind" --out "$CHANGE/db_${name}_$kind" \
       --overwrite --quiet >/dev/null 2>&1
   done
+  "$PLACEDB" build "${map[@]}" --clahe true --out "$CHANGE/db_${name}_clahe" --overwrite --quiet \
+    >/dev/null 2>&1
   change() {
     "$PLACEDB" eval --db "$CHANGE/db_${name}_$1" "${queries[@]}" --all --quiet --sequence "${@:3}" \
       --json "$CHANGE/$name.$2.json" >/dev/null 2>&1
   }
-  change thumbnail thumb --baseline both
-  change thumbnail thumb.w150 --whole-image-weight 150
-  change hog hog.w150 --whole-image-weight 150
-  change thumbnail thumb.seq10 --sequence-whole-image-weight 10
-  change hog hog.seq10 --sequence-whole-image-weight 10
-  change hog hog.seq10v --sequence-whole-image-weight 10 --sequence-min-velocity 0.8 \
-    --sequence-max-velocity 1.2 --sequence-velocity-steps 5
+  change hog default --baseline both
+  change hog local --whole-image-weight 0 --whole-image-candidates 0 --sequence-whole-image-weight 0
+  change hog whole --whole-image-weight 1000 --whole-image-floor 0
+  change hog lists --sequence-whole-image-weight 0
+  change thumbnail thumb
+  change hog velocities --sequence-min-velocity 0.8 --sequence-max-velocity 1.2 --sequence-velocity-steps 5
+  change clahe clahe
 done
 python3 scripts/hard_places.py "$HARD" --change "$CHANGE" --readme README.md
 

@@ -68,6 +68,7 @@ TEST(BuilderTest, CropModesAndResizeFactors) {
     for (int resize : {1, 4, 16}) {
       SCOPED_TRACE(std::string("crop ") + CropModeName(crop) + " resize " + std::to_string(resize));
       BuildOptions options = SmallBuild();
+      options.features.whole_image.kind = WholeImageKind::kThumbnail;  // rows without a model
       options.crop = crop;
       options.resize = resize;
       const std::string out =
@@ -442,8 +443,9 @@ TEST(BuilderTest, KeyframesRecordTheirSourceHashAndTheManifestItsIds) {
   EXPECT_EQ(ids["removed_since"], db.info()["created"]);
 }
 
-// The whole-image channel: built by default (the manifest says so), of the
-// size the options give; --no-whole-image builds a database without it,
+// The whole-image channel (the thumbnail here; HogChannelTest has the
+// default HOG's): built by default (the manifest says so), of the size the
+// options give; --no-whole-image builds a database without it,
 // whose manifest says enabled false, and whose keyframe file is what an
 // earlier placedb wrote (no whole-image section). Settings and file must
 // agree: a manifest that says otherwise is a corrupt database.
@@ -451,6 +453,7 @@ TEST(BuilderTest, WholeImageChannel) {
   TempDir tmp;
   const std::vector<Frame> frames = ListImageFolder(kImages, 3, 6);
   BuildOptions options = SmallBuild();
+  options.features.whole_image.kind = WholeImageKind::kThumbnail;
   options.features.whole_image.width = 16;
   options.features.whole_image.height = 12;
   options.features.whole_image.patch = 4;

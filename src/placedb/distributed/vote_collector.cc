@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include "placedb/query/order.h"
 #include "placedb/session/place_database.h"
 #include "placedb/util/check.h"
 #include "placedb/util/options.h"
@@ -93,9 +94,14 @@ VoteStatus VoteCollector::OnPartial(uint64_t frame_seq, int partition, const Que
   if (p.partials.count(partition)) return VoteStatus::kDuplicate;
   // What MergeQueryResults refuses is refused here, so that Poll never fails:
   // each keyframe once across the frame's results, verified as the vote is.
+  // Each score as the vote's options make it (the whole-image bonus
+  // included), so that a worker run with other options cannot tilt the merge.
   std::set<int32_t> ids;
   for (const RankedKeyframe& r : partial.ranked) {
     if (r.verified() != options_.query.verify.enabled || !ids.insert(r.keyframe_id).second)
+      return VoteStatus::kInconsistent;
+    const double counted = r.verified() ? r.num_inliers : r.num_matches;
+    if (r.score != counted + query_order::WholeImageBonus(r.whole_image_z, options_.query))
       return VoteStatus::kInconsistent;
   }
   for (const auto& [other, result] : p.partials) {

@@ -283,12 +283,21 @@ TEST(VoteCollectorTest, ResultsThatCannotBeMergedAreRefused) {
   QueryResult unverified = Partial(20, 40, 30);
   unverified.ranked[0].num_inliers = -1;
   EXPECT_EQ(c.OnPartial(1, 1, unverified, 1.0), VoteStatus::kInconsistent);
-  EXPECT_EQ(c.OnPartial(1, 1, Partial(20, 40, 30), 1.0), VoteStatus::kAccepted);
+  // A score other than the vote's options make of the counts and the
+  // whole-image evidence (a worker with another weight, or a forged score).
+  QueryResult tilted = Partial(20, 40, 30);
+  tilted.ranked[0].whole_image = 0.5;
+  tilted.ranked[0].whole_image_z = 5.0;  // 2 above the floor: 30 + 10 x 2 with the defaults
+  EXPECT_EQ(c.OnPartial(1, 1, tilted, 1.0), VoteStatus::kInconsistent);
+  tilted.ranked[0].score = 30.0 + 25.0;
+  EXPECT_EQ(c.OnPartial(1, 1, tilted, 1.0), VoteStatus::kInconsistent);
+  tilted.ranked[0].score = 30.0 + 10.0 * 2.0;
+  EXPECT_EQ(c.OnPartial(1, 1, tilted, 1.0), VoteStatus::kAccepted);
   EXPECT_EQ(c.OnPartial(1, 2, Partial(30, 40, 35), 1.0), VoteStatus::kAccepted);
   const std::vector<FrameAnswer> ready = c.Poll(1.0);
   ASSERT_EQ(ready.size(), 1u);
   EXPECT_TRUE(ready[0].complete());
-  EXPECT_EQ(ready[0].result.best()->keyframe_id, 30);
+  EXPECT_EQ(ready[0].result.best()->keyframe_id, 20);  // 30 inliers + 20 of whole image
   EXPECT_STREQ(VoteStatusName(VoteStatus::kInconsistent), "inconsistent");
 }
 

@@ -69,9 +69,13 @@ BenchReport RunBench(const PlaceDatabase& db, const std::vector<Frame>& frames,
   if (features.empty()) PLACEDB_THROW_INVALID("no readable query image to benchmark with");
   const int n = static_cast<int>(features.size());
 
+  // Local matching, as the paper's loop does it: the whole-image channel
+  // off (its scan is sequence_bench's and scale_bench's to time).
   QueryOptions match_only = query_options;
   match_only.verify.enabled = false;
-  QueryOptions verified = query_options;
+  match_only.whole_image_weight = 0.0;
+  match_only.whole_image_candidates = 0;
+  QueryOptions verified = match_only;
   verified.verify.enabled = true;
   const OpenCvOnOneThread one_opencv_thread;
   BenchReport r;

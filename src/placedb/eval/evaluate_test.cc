@@ -227,13 +227,19 @@ TEST(EvaluateTest, VerificationDoesNotLowerRecall) {
   EXPECT_GE(verified.recall_at_1, unverified.recall_at_1);
   // Measured: 43 of 44 either way.
   EXPECT_GE(unverified.num_correct, 43);
-  // Unverified queries do not run the verify stage, and rank by matches.
+  // Unverified queries do not run the verify stage, and rank by matches
+  // (plus the whole-image bonus).
+  const QueryOptions o;
+  const auto bonus = [&](const RankedKeyframe& k) {
+    return k.whole_image_z ? o.whole_image_weight * std::max(0.0, *k.whole_image_z - o.whole_image_floor)
+                           : 0.0;
+  };
   EXPECT_EQ(unverified.verify_ms.max, 0.0);
   for (const QueryRecord& q : unverified.queries) {
     EXPECT_EQ(q.result.num_verified, 0u) << q.query_id;
     for (const RankedKeyframe& k : q.result.ranked) {
       EXPECT_FALSE(k.verified()) << q.query_id;
-      EXPECT_EQ(k.score, k.num_matches) << q.query_id;
+      EXPECT_EQ(k.score, k.num_matches + bonus(k)) << q.query_id;
     }
   }
   for (const QueryRecord& q : verified.queries) {
@@ -243,7 +249,7 @@ TEST(EvaluateTest, VerificationDoesNotLowerRecall) {
     EXPECT_EQ(q.result.num_verified > 0, !q.result.ranked.empty()) << q.query_id;
     for (const RankedKeyframe& k : q.result.ranked) {
       EXPECT_TRUE(k.verified()) << q.query_id;
-      EXPECT_EQ(k.score, k.num_inliers) << q.query_id;
+      EXPECT_EQ(k.score, k.num_inliers + bonus(k)) << q.query_id;
     }
   }
 }

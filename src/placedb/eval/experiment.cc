@@ -103,8 +103,9 @@ QueryOptions QueryFor(const ExperimentOptions& o, const ExperimentSetting& s) {
   q.verify.enabled = s.verify;
   if (s.whole_image) {
     if (q.whole_image_weight <= 0.0) q.whole_image_weight = ExperimentOptions::kWholeImageWeight;
-  } else {
+  } else {  // the channel off: no bonus and no candidates of its own
     q.whole_image_weight = 0.0;
+    q.whole_image_candidates = 0;
   }
   return q;
 }

@@ -549,9 +549,12 @@ TEST_F(CliTest, TinyImagesGiveZeroFeaturesWithoutError) {
 TEST_F(CliTest, QueryAgainstAnEmptyDatabaseSaysSo) {
   // Builds refuse to produce an empty database; one made through the library
   // is still handled.
+  // The thumbnail channel: the HOG channel's rows need a model a build fits.
+  placedb::BuildOptions thumbnail;
+  thumbnail.features.whole_image.kind = placedb::WholeImageKind::kThumbnail;
   placedb::Database empty(placedb::FeatureType::kOrb, 32,
-                          placedb::WholeImageDims(placedb::BuildOptions().features));
-  empty.info()["settings"] = placedb::BuildSettingsToJson(placedb::BuildOptions());
+                          placedb::WholeImageDims(thumbnail.features));
+  empty.info()["settings"] = placedb::BuildSettingsToJson(thumbnail);
   fs::create_directories(Path("empty"));
   empty.Save(Path("empty"));
   const CommandResult query =

@@ -67,11 +67,16 @@ class QueryCommand : public Command {
                  r.ranked[0].keyframe_id, r.ranked[0].score, options.min_score);
     }
     if (!r.ranked.empty()) {
-      fmt::print("rank  keyframe  matches  inliers\n");
+      // With the whole-image channel: each keyframe's standardised similarity
+      // and the score it makes with the local evidence.
+      const bool whole = r.ranked.front().whole_image_z.has_value();
+      fmt::print("rank  keyframe  matches  inliers{}\n", whole ? "  whole z    score" : "");
       for (size_t i = 0; i < r.ranked.size(); ++i) {
         const RankedKeyframe& k = r.ranked[i];
-        fmt::print("{:>4}  {:>8}  {:>7}  {:>7}\n", i + 1, k.keyframe_id, k.num_matches,
+        fmt::print("{:>4}  {:>8}  {:>7}  {:>7}", i + 1, k.keyframe_id, k.num_matches,
                    k.verified() ? std::to_string(k.num_inliers) : "-");
+        if (whole && k.whole_image_z) fmt::print("  {:>7.2f}  {:>7.1f}", *k.whole_image_z, k.score);
+        fmt::print("\n");
       }
     }
     fmt::print(

@@ -124,6 +124,24 @@ class UpscalingExtractor : public FeatureExtractor {
   int upscale_below_;
 };
 
+// Extracts local features from the grey image contrast-equalised by CLAHE.
+class ContrastExtractor : public FeatureExtractor {
+ public:
+  explicit ContrastExtractor(std::unique_ptr<FeatureExtractor> inner) : inner_(std::move(inner)) {}
+
+  FeatureSet Extract(const cv::Mat& image) const override {
+    if (image.empty()) return inner_->Extract(image);
+    cv::Mat equalised;
+    // One CLAHE a call: its buffers make a shared one unsafe across threads.
+    cv::createCLAHE(2.0, cv::Size(8, 8))->apply(ToGray(image), equalised);
+    return inner_->Extract(equalised);
+  }
+  FeatureType type() const override { return inner_->type(); }
+
+ private:
+  std::unique_ptr<FeatureExtractor> inner_;
+};
+
 // Adds the whole-image descriptor of the image as given (before any
 // upscaling) to the inner extractor's features.
 class WholeImageExtractor : public FeatureExtractor {
@@ -143,7 +161,10 @@ class WholeImageExtractor : public FeatureExtractor {
     if (options_.kind == WholeImageKind::kThumbnail)
       return ComputeWholeImageDescriptor(image, options_);
     if (model_) return model_->Describe(image);
-    return ComputeHogRaw(image, options_.hog_width, options_.hog_height);
+    // The raw rows a build fits its model on; height 0: the frame's aspect.
+    const int height = options_.hog_height != 0 ? options_.hog_height
+                                                : HogHeightForFrame(options_.hog_width, image.size());
+    return ComputeHogRaw(image, options_.hog_width, height);
   }
 
  private:
@@ -159,9 +180,9 @@ std::unique_ptr<FeatureExtractor> FeatureExtractor::Create(
   PLACEDB_CHECK_OPTIONS(options);
   const WholeImageOptions& w = options.whole_image;
   if (w.enabled && w.kind == WholeImageKind::kHog) {
-    if (w.hog_height == 0) {
-      PLACEDB_THROW_INVALID("the HOG whole-image channel needs its thumbnail height (`whole_image_hog_height`, set "
-                            "from the map's frames by a build)");
+    if (model && w.hog_height == 0) {
+      PLACEDB_THROW_INVALID("the HOG whole-image channel's model needs its thumbnail height "
+                            "(`whole_image_hog_height`, set from the map's frames by a build)");
     }
     if (model && (model->width() != w.hog_width || model->height() != w.hog_height ||
                   model->output_dims() != w.hog_dims)) {
@@ -191,6 +212,7 @@ std::unique_ptr<FeatureExtractor> FeatureExtractor::Create(
     extractor = std::make_unique<UpscalingExtractor>(std::move(extractor), std::move(small),
                                                      options.upscale_below);
   }
+  if (options.clahe) extractor = std::make_unique<ContrastExtractor>(std::move(extractor));
   if (options.whole_image.enabled) {
     extractor = std::make_unique<WholeImageExtractor>(std::move(extractor), options.whole_image,
                                                       std::move(model));

@@ -111,6 +111,10 @@ const OptionTable<ExtractorOptions>& ExtractorOptions::Table() {
              "small frames: ORB's FAST threshold on images upscaled 2x or more (0: "
              "orb_fast_threshold)")
         .absent = int64_t{0};
+    t.Bool("clahe", PLACEDB_MEMBER(O, clahe),
+           "local features: contrast-equalise the grey frame (CLAHE) before detection, for the "
+           "map and its queries alike")
+        .absent = false;
     t.Nest(PLACEDB_MEMBER(O, whole_image), WholeImageOptions::Table());
     return t;
   }();

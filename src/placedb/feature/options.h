@@ -45,9 +45,10 @@ WholeImageKind ParseWholeImageKind(const std::string& name);
 // per keyframe and query, SeqSLAM's patch-normalised thumbnail or a
 // PCA-whitened HOG of the whole frame.
 struct WholeImageOptions {
-  // Which descriptor. Default kThumbnail; a manifest without the key reads
-  // kThumbnail (its databases have today's rows).
-  WholeImageKind kind = WholeImageKind::kThumbnail;
+  // Which descriptor. Default kHog (docs' "places that change" table: it
+  // survives light and season where the thumbnail does not); a manifest
+  // without the key reads kThumbnail (databases of earlier versions).
+  WholeImageKind kind = WholeImageKind::kHog;
   // Thumbnail width and height, pixels. Range [4, 64]. Default 32 x 24.
   int width = 32;
   int height = 24;
@@ -97,6 +98,13 @@ struct ExtractorOptions {
   // frames of 240 px and more are not upscaled). Manifests without the key
   // read as 0: databases of earlier versions keep their extraction.
   int upscaled_fast_threshold = 5;
+  // Local features under changed light: the grey frame is contrast-equalised
+  // (CLAHE: clip limit 2, 8 x 8 tiles, before any upscaling) before
+  // detection and description, for the map's frames and the queries alike
+  // (the database records it). The whole-image channel equalises its own
+  // thumbnail either way. Default false (docs' "places that change" table
+  // has what it gives); manifests without the key read false.
+  bool clahe = false;
   // The whole-image descriptor (FeatureSet::whole_image), computed on the
   // image as given, before any upscaling.
   WholeImageOptions whole_image;

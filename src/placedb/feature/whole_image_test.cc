@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "placedb/feature/extractor.h"
+#include "placedb/feature/testing.h"
 #include "placedb/util/error.h"
 #include "placedb/util/testing.h"
 
@@ -166,7 +167,7 @@ TEST(WholeImageTest, ExtractorFillsIt) {
   const cv::Mat image = cv::imread(RtabmapImage(5));
   cv::Mat small;
   cv::resize(image, small, cv::Size(160, 120), 0, 0, cv::INTER_AREA);
-  ExtractorOptions o;
+  ExtractorOptions o = testing::ModelFreeExtractorOptions();
   for (const cv::Mat& m : {image, small}) {
     const FeatureSet set = FeatureExtractor::Create(o)->Extract(m);
     ASSERT_EQ(set.whole_image.cols, 768);

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "placedb/feature/extractor.h"
+#include "placedb/feature/testing.h"
 #include "placedb/match/ratio_matcher.h"
 #include "placedb/util/testing.h"
 
@@ -369,7 +370,7 @@ TEST(GeometricVerificationTest, OptionsCheckRangesAndModelNames) {
 FeatureSet Orb(const std::string& path) {
   const cv::Mat img = cv::imread(path);
   EXPECT_FALSE(img.empty()) << path;
-  return FeatureExtractor::Create(ExtractorOptions())->Extract(img);
+  return FeatureExtractor::Create(testing::ModelFreeExtractorOptions())->Extract(img);
 }
 
 // The matched point pairs of query `a` and keyframe `b`.

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "placedb/feature/extractor.h"
+#include "placedb/feature/testing.h"
 #include "placedb/match/hamming.h"
 #include "placedb/util/testing.h"
 
@@ -25,7 +26,7 @@ using testing_util::ThrowsWith;
 FeatureSet Orb(const std::string& path) {
   const cv::Mat img = cv::imread(path);
   EXPECT_FALSE(img.empty()) << path;
-  return FeatureExtractor::Create(ExtractorOptions())->Extract(img);
+  return FeatureExtractor::Create(testing::ModelFreeExtractorOptions())->Extract(img);
 }
 
 std::string Image(int n) { return testing_util::RtabmapImage(n); }

@@ -620,8 +620,12 @@ PYBIND11_MODULE(placedb, m) {
           "stored_image", [](const RankedKeyframe& k) { return FsString(k.stored_image); },
           "its stored PNG (database directory joined); '' when none")
       .def_readonly("whole_image", &RankedKeyframe::whole_image,
-                    "cosine similarity of the whole-image descriptors, in [-1, 1], when the query "
-                    "scored the channel (whole_image_weight > 0); None otherwise")
+                    "cosine similarity of the whole-image descriptors, in [-1, 1], when the "
+                    "channel ran (whole_image_weight or whole_image_candidates > 0); None otherwise")
+      .def_readonly("whole_image_z", &RankedKeyframe::whole_image_z,
+                    "whole_image standardised over the database's keyframes for this query "
+                    "(deviations above their mean); the score adds whole_image_weight x max(0, "
+                    "whole_image_z - whole_image_floor). None without the channel")
       .def(
           "to_dict", [](const RankedKeyframe& k) { return FromJsonText(RankedKeyframeToJson(k)); },
           "The library's JSON of this entry, as a dict.")
@@ -822,7 +826,9 @@ PYBIND11_MODULE(placedb, m) {
       .def("extract", &Extract, py::arg("image"),
            "The query features of an image, as query() computes them: (keypoints Nx7 float32 "
            "[x, y, size, angle, response, octave, class_id], descriptors NxD uint8 (ORB) or "
-           "float32 (SURF)). query_features(*db.extract(image)) gives query(image)'s answer.")
+           "float32 (SURF)). query_features(*db.extract(image)) gives the answer of "
+           "query(image, whole_image_weight=0, whole_image_candidates=0) (features carry no "
+           "whole-image row).")
       .def("query", &QueryImage, py::arg("image"), query_doc.c_str())
       .def("query_features", &QueryFeatures, py::arg("keypoints"), py::arg("descriptors"),
            "The same as query() for features computed elsewhere (extract(), another process).\n\n"

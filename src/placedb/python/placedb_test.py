@@ -32,6 +32,14 @@ def image_path(i):
     return os.path.join(IMAGES, "%03d.jpg" % i)
 
 
+def bonus(k):
+    """The whole-image channel's part of a score with the default options."""
+    d = placedb.query_option_defaults()
+    if k.whole_image_z is None:
+        return 0.0
+    return d["whole_image_weight"] * max(0.0, k.whole_image_z - d["whole_image_floor"])
+
+
 def ranking(result):
     """What must agree between two runs of one query (not the times)."""
     return [(k.keyframe_id, k.score, k.num_matches, k.num_inliers) for k in result.ranked]
@@ -67,7 +75,7 @@ class PlaceDbTest(unittest.TestCase):
         self.assertEqual(len(db), 20)
         self.assertEqual(db.feature_type, "orb")
         self.assertEqual(db.descriptor_width, 32)
-        self.assertEqual(db.whole_image_dims, 32 * 24)
+        self.assertEqual(db.whole_image_dims, 512)  # the default HOG channel
         self.assertEqual(os.path.realpath(db.directory), os.path.realpath(self.db_dir))
         self.assertEqual(db.keyframe_ids, list(range(1, 21)))
         m = db.manifest
@@ -137,7 +145,7 @@ class PlaceDbTest(unittest.TestCase):
         self.assertEqual(r.ranked[0], r.best)
         self.assertTrue(r.best.verified)
         self.assertGreaterEqual(r.best.num_matches, r.best.num_inliers)
-        self.assertEqual(r.best.score, r.best.num_inliers)
+        self.assertEqual(r.best.score, r.best.num_inliers + bonus(r.best))
         self.assertGreaterEqual(r.best.score, placedb.query_option_defaults()["min_score"])
         self.assertEqual(os.path.basename(r.best.source), "005.jpg")
         self.assertTrue(os.path.isfile(r.best.stored_image))
@@ -224,18 +232,21 @@ class PlaceDbTest(unittest.TestCase):
             placedb.SequenceMatcher(self.db, sequence_lenght=3)
 
     def test_whole_image_channel(self):
-        self.assertEqual(self.db.whole_image_dims, 768)
-        plain = self.db.query(self.image5)
+        self.assertEqual(self.db.whole_image_dims, 512)
+        plain = self.db.query(self.image5, whole_image_weight=0, whole_image_candidates=0)
         self.assertIsNone(plain.ranked[0].whole_image)
-        r = self.db.query(self.image5, whole_image_weight=10)
+        self.assertIsNone(plain.ranked[0].whole_image_z)
+        r = self.db.query(self.image5, whole_image_weight=4, whole_image_floor=1)
         self.assertEqual(r.best.keyframe_id, 5)
         for k in r.ranked:
             self.assertIsNotNone(k.whole_image)
             self.assertLessEqual(abs(k.whole_image), 1.0)
-            expected = (k.num_inliers if k.verified else k.num_matches) + 10 * max(0.0, k.whole_image)
+            expected = (k.num_inliers if k.verified else k.num_matches) + 4 * max(0.0, k.whole_image_z - 1)
             self.assertAlmostEqual(k.score, expected, places=9)
         self.assertGreater(r.ranked[0].whole_image, 0.99)  # the keyframe's own image
+        self.assertGreater(r.ranked[0].whole_image_z, 2.0)  # stands out from the map
         self.assertEqual(r.to_dict()["ranked"][0]["whole_image"], r.ranked[0].whole_image)
+        self.assertEqual(r.to_dict()["ranked"][0]["whole_image_z"], r.ranked[0].whole_image_z)
 
     def test_other_layouts_give_the_same_answer(self):
         im = self.image5
@@ -265,7 +276,8 @@ class PlaceDbTest(unittest.TestCase):
         self.assertGreater(kp.shape[0], 0)
         self.assertTrue(np.all(kp[:, 0] >= 0) and np.all(kp[:, 0] < self.image5.shape[1]))
         self.assertTrue(np.all(kp[:, 1] >= 0) and np.all(kp[:, 1] < self.image5.shape[0]))
-        by_image = self.db.query(self.image5)
+        # Features carry no whole-image row: the image's answer without the channel.
+        by_image = self.db.query(self.image5, whole_image_weight=0, whole_image_candidates=0)
         by_features = self.db.query_features(kp, desc)
         self.assertEqual(ranking(by_features), ranking(by_image))
         self.assertEqual(by_features.matched, by_image.matched)
@@ -293,7 +305,7 @@ class PlaceDbTest(unittest.TestCase):
         self.assertEqual(len(r.ranked), 2)
         r = self.db.query(im, verify=False)
         self.assertTrue(all(not k.verified and k.num_inliers == -1 for k in r.ranked))
-        self.assertEqual(r.best.score, r.best.num_matches)
+        self.assertEqual(r.best.score, r.best.num_matches + bonus(r.best))
         self.assertEqual(r.best.keyframe_id, 5)
         # Above any score: "no match", the ranking is still there.
         r = self.db.query(im, min_score=100000)

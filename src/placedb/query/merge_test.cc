@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "placedb/feature/extractor.h"
+#include "placedb/feature/testing.h"
 #include "placedb/query/query.h"
 #include "placedb/util/testing.h"
 
@@ -53,7 +54,7 @@ struct PairKnn {
 class QueryOracleTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    const auto extractor = FeatureExtractor::Create(ExtractorOptions());
+    const auto extractor = FeatureExtractor::Create(testing::ModelFreeExtractorOptions());
     features_ = new std::map<int, FeatureSet>();
     db_ = new Database(FeatureType::kOrb, 32);
     for (int i = kFirstKeyframe; i <= kLastQuery; ++i) {

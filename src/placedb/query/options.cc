@@ -83,8 +83,13 @@ const OptionTable<QueryOptions>& QueryOptions::Table() {
     t.Nest(PLACEDB_MEMBER(O, verify), VerifyOptions::Table(), kQuery);
     t.Number("whole_image_weight", PLACEDB_MEMBER(O, whole_image_weight),
              OptionRange::Closed(0, 10000),
-             "whole-image channel: a keyframe's score adds this times its whole-image similarity "
-             "(when positive) to its inliers (or matches); 0: the channel does not score",
+             "whole-image channel: a keyframe's score adds this times its whole-image similarity's "
+             "deviations from the map's mean above `whole_image_floor` to its inliers (or "
+             "matches); 0: the channel does not score",
+             kQuery);
+    t.Number("whole_image_floor", PLACEDB_MEMBER(O, whole_image_floor), OptionRange::Closed(0, 100),
+             "whole-image channel: standardised similarity (deviations above the map's mean) "
+             "below which a keyframe gains nothing",
              kQuery);
     t.Number("whole_image_candidates", PLACEDB_MEMBER(O, whole_image_candidates),
              OptionRange::Closed(0, 1000),

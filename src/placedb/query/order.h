@@ -18,22 +18,21 @@ inline bool MoreMatches(int32_t id_a, int a, int32_t id_b, int b) {
   return a != b ? a > b : id_a < id_b;
 }
 
-// The whole-image channel's part of a score: weight x max(0, similarity); 0
-// without the channel.
-inline double WholeImageBonus(const std::optional<double>& similarity,
-                              const QueryOptions& options) {
-  return similarity ? options.whole_image_weight * std::max(0.0, *similarity) : 0.0;
+// The whole-image channel's part of a score: weight x max(0, z - floor) of
+// the standardised similarity z; 0 without the channel.
+inline double WholeImageBonus(const std::optional<double>& z, const QueryOptions& options) {
+  return z ? options.whole_image_weight * std::max(0.0, *z - options.whole_image_floor) : 0.0;
 }
 
 // The match stage's key: matches plus the whole-image bonus. A verified score
 // (inliers plus the same bonus) never exceeds it.
 inline double MatchKey(const RankedKeyframe& r, const QueryOptions& options) {
-  return r.num_matches + WholeImageBonus(r.whole_image, options);
+  return r.num_matches + WholeImageBonus(r.whole_image_z, options);
 }
 
 // A verified keyframe's score: its inliers plus the whole-image bonus.
 inline double VerifiedScore(const RankedKeyframe& r, const QueryOptions& options) {
-  return r.num_inliers + WholeImageBonus(r.whole_image, options);
+  return r.num_inliers + WholeImageBonus(r.whole_image_z, options);
 }
 
 // Match-stage order on keys: the larger first, then the lower id.

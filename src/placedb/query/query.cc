@@ -96,38 +96,42 @@ struct Examined {
   int32_t id = 0;
   int num_matches = 0;
   std::vector<cv::DMatch> matches;
-  std::optional<double> whole_image;  // similarity, with the channel
-  double key = 0.0;                   // matches + the whole-image bonus (order.h)
+  std::optional<double> whole_image;    // similarity, with the channel
+  std::optional<double> whole_image_z;  // standardised, with the channel
+  double key = 0.0;                     // matches + the whole-image bonus (order.h)
 };
 
-// The whole-image similarity to the query of every keyframe (`similarity`,
-// by index), or of the examined ones alone (`rows` ascending, `values`):
-// what a search needs when the channel adds no candidates, without the scan
-// of every thumbnail (77 MB at 100 000 keyframes). Empty without the
+// The whole-image similarity to the query of every keyframe (by index) and
+// their mean and standard deviation over the database's keyframes (not the
+// restriction's, and for a subset over its file's: every partition
+// standardises alike; the removed ones left out). Empty without the
 // channel.
 struct WholeImageScores {
   std::vector<float> similarity;
-  std::vector<uint32_t> rows;
-  std::vector<float> values;
+  double mean = 0.0;
+  double inverse_deviation = 0.0;  // 0 when the similarities do not vary
   std::optional<double> Of(uint32_t index) const {
-    if (!similarity.empty()) return static_cast<double>(similarity[index]);
-    const auto it = std::lower_bound(rows.begin(), rows.end(), index);
-    if (it == rows.end() || *it != index) return std::nullopt;
-    return static_cast<double>(values[static_cast<size_t>(it - rows.begin())]);
+    if (similarity.empty()) return std::nullopt;
+    return static_cast<double>(similarity[index]);
+  }
+  std::optional<double> StandardOf(uint32_t index) const {
+    if (similarity.empty()) return std::nullopt;
+    return (static_cast<double>(similarity[index]) - mean) * inverse_deviation;
   }
 };
 
 Examined MakeExamined(const Database& db, uint32_t index, int good, std::vector<cv::DMatch> matches,
                       const WholeImageScores& whole, const QueryOptions& options) {
-  Examined e{index, db.keyframe(index).id, good, std::move(matches), whole.Of(index), 0.0};
-  e.key = good + WholeImageBonus(e.whole_image, options);
+  Examined e{index,           db.keyframe(index).id,  good, std::move(matches),
+             whole.Of(index), whole.StandardOf(index), 0.0};
+  e.key = good + WholeImageBonus(e.whole_image_z, options);
   return e;
 }
 
 // Whether an examined keyframe is ranked: enough matches, or whole-image
 // evidence (a tiny or featureless frame still has its thumbnail).
-bool Ranked(int good, const std::optional<double>& whole_image, const QueryOptions& options) {
-  return good >= options.min_matches || WholeImageBonus(whole_image, options) > 0.0;
+bool Ranked(int good, const WholeImageScores& whole, uint32_t index, const QueryOptions& options) {
+  return good >= options.min_matches || WholeImageBonus(whole.StandardOf(index), options) > 0.0;
 }
 
 void KeepBest(std::vector<Examined>* list, size_t keep) {
@@ -166,6 +170,7 @@ RankedKeyframe Describe(const Database& db, const Examined& e, const std::string
   r.keyframe_id = k.id;
   r.num_matches = e.num_matches;
   r.whole_image = e.whole_image;
+  r.whole_image_z = e.whole_image_z;
   r.score = e.key;
   r.pose = k.pose;
   r.timestamp = k.timestamp;
@@ -225,7 +230,7 @@ Examination ExamineAll(const Database& db, const GroupedFeatures& grouped,
       matches.clear();
       const int good = MatchDescriptors(grouped.block, db.Descriptors(index, &rows), options.match,
                                         need_matches ? &matches : nullptr);
-      if (!Ranked(good, whole.Of(index), options)) continue;
+      if (!Ranked(good, whole, index, options)) continue;
       kept.push_back(MakeExamined(
           db, index, good, need_matches ? matches : std::vector<cv::DMatch>(), whole, options));
       if (kept.size() > 2 * keep + 64) KeepBest(&kept, keep);  // bounded memory
@@ -336,7 +341,7 @@ Examination ExamineTimed(const Database& db, const GroupedFeatures& grouped,
       examined.fetch_add(1, std::memory_order_relaxed);
       const double matched_ms = t.ElapsedMs();
       double verified_ms = 0.0;
-      if (Ranked(good, whole.Of(index), options)) {
+      if (Ranked(good, whole, index, options)) {
         Examined e = MakeExamined(db, index, good, verify ? matches : std::vector<cv::DMatch>(),
                                   whole, options);
         bool candidate;
@@ -378,33 +383,46 @@ Examination ExamineTimed(const Database& db, const GroupedFeatures& grouped,
   return out;
 }
 
-// The whole-image channel: the keyframes' similarity to the query, when
-// the database has the channel and the query a descriptor of its size (a
-// query from an image; features from elsewhere carry none). Every
-// keyframe's when the channel adds candidates to a search that is not
-// exhaustive; else those of `candidates` (nullptr: every keyframe's), the
-// only ones a search examines.
+// The whole-image channel: every keyframe's similarity to the query and
+// their statistics, when the database has the channel, the query a
+// descriptor of its size (a query from an image; features from elsewhere
+// carry none) and the options use it (a weight to score or candidates to
+// add). `excluded`: the removed keyframes (nullptr: none), left out of the
+// statistics.
 WholeImageScores ScoreWholeImages(const Database& db, const FeatureSet& query,
-                                  const QueryOptions& options, bool exhaustive,
-                                  const std::vector<Candidate>* candidates) {
+                                  const QueryOptions& options, const uint8_t* excluded) {
   WholeImageScores s;
   const int dims = db.whole_image_dims();
   if (dims <= 0 || query.whole_image.empty() || db.size() == 0) return s;
-  const bool adds = !exhaustive && options.whole_image_candidates > 0;
-  // Needed to score, or to add candidates.
-  if (options.whole_image_weight <= 0.0 && !adds) return s;
+  if (options.whole_image_weight <= 0.0 && options.whole_image_candidates <= 0) return s;
   const int8_t* q = query.whole_image.ptr<int8_t>();
-  if (!adds && candidates != nullptr && candidates->size() < db.size()) {
-    for (const Candidate& c : *candidates) s.rows.push_back(c.index);
-    std::sort(s.rows.begin(), s.rows.end());
-    s.rows.erase(std::unique(s.rows.begin(), s.rows.end()), s.rows.end());
-    s.values.resize(s.rows.size());
-    for (size_t i = 0; i < s.rows.size(); ++i)
-      WholeImageSimilarities(q, db.WholeImage(s.rows[i]), 1, dims, &s.values[i]);
-    return s;
-  }
   s.similarity.resize(db.size());
   WholeImageSimilarities(q, db.WholeImageData(), db.size(), dims, s.similarity.data());
+  // A subset standardises over its file's rows, as the whole database does.
+  size_t count = 0;
+  const int8_t* rows = db.StandardisingRows(&count);
+  std::vector<float> file_similarity;
+  if (rows != db.WholeImageData()) {
+    file_similarity.resize(count);
+    WholeImageSimilarities(q, rows, count, dims, file_similarity.data());
+    excluded = nullptr;  // the mask is the subset's
+  }
+  const std::vector<float>& reference = rows != db.WholeImageData() ? file_similarity : s.similarity;
+  double sum = 0.0, sum_sq = 0.0;
+  size_t n = 0;
+  for (size_t i = 0; i < reference.size(); ++i) {
+    if (excluded != nullptr && excluded[i] != 0) continue;
+    const double v = reference[i];
+    sum += v;
+    sum_sq += v * v;
+    ++n;
+  }
+  if (n >= 2) {
+    s.mean = sum / static_cast<double>(n);
+    const double variance = std::max(0.0, sum_sq / static_cast<double>(n) - s.mean * s.mean);
+    // Similarities are in [-1, 1]: a deviation below 1e-6 is rounding.
+    if (variance > 1e-12) s.inverse_deviation = 1.0 / std::sqrt(variance);
+  }
   return s;
 }
 
@@ -491,8 +509,8 @@ QueryResult RunStages(const Database& db, const FeatureSet& query, const QueryOp
   std::vector<Candidate> candidates =
       retriever.Retrieve(db, query, among, excluded, retrieve_deadline, &retrieve_stopped);
   const bool exhaustive = retriever.method() == RetrievalMethod::kExhaustive;
-  const WholeImageScores whole = ScoreWholeImages(db, query, options, exhaustive, &candidates);
-  if (!whole.similarity.empty() && !exhaustive)
+  const WholeImageScores whole = ScoreWholeImages(db, query, options, excluded);
+  if (!whole.similarity.empty() && !exhaustive && options.whole_image_candidates > 0)
     AddWholeImageCandidates(whole, options, among, excluded, &candidates);
   result.times.retrieve_ms = stage.ElapsedMs();
 
@@ -682,7 +700,7 @@ Shortlist ShortlistDatabase(const Database& db, const FeatureSet& query,
     out.bow.push_back({c.index, db.keyframe(c.index).id, c.score, c.guided});
   // The thumbnails are scanned only to name whole-image candidates.
   const WholeImageScores whole = options.whole_image_candidates > 0
-                                     ? ScoreWholeImages(db, query, options, false, nullptr)
+                                     ? ScoreWholeImages(db, query, options, excluded)
                                      : WholeImageScores();
   if (!whole.similarity.empty()) {
     for (const uint32_t i : MostSimilarWholeImages(

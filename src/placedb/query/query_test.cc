@@ -17,6 +17,7 @@
 
 #include "placedb/builder/builder.h"
 #include "placedb/dataset/image_folder.h"
+#include "placedb/feature/testing.h"
 #include "placedb/feature/whole_image.h"
 #include "placedb/query/ranking.h"
 #include "placedb/util/testing.h"
@@ -49,9 +50,9 @@ std::map<int, std::set<int>> ReadTruth() {
 class QueryTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    extractor_ = FeatureExtractor::Create(ExtractorOptions()).release();
+    extractor_ = FeatureExtractor::Create(testing::ModelFreeExtractorOptions()).release();
     features_ = new std::map<int, FeatureSet>();
-    db_ = new Database(FeatureType::kOrb, 32, WholeImageDims(ExtractorOptions()));
+    db_ = new Database(FeatureType::kOrb, 32, WholeImageDims(testing::ModelFreeExtractorOptions()));
     for (int i = 1; i <= 84; ++i) {
       const cv::Mat image = cv::imread(RtabmapImage(i));
       ASSERT_FALSE(image.empty()) << RtabmapImage(i);
@@ -294,26 +295,44 @@ TEST_F(QueryTest, MergedPartitionsEqualTheWholeDatabase) {
 }
 
 // The whole-image channel: each ranked keyframe carries its similarity and
-// its score adds weight x max(0, similarity); a featureless query is still
-// ranked by it; features without a descriptor (from elsewhere) leave it out;
-// a descriptor of the wrong size is refused.
+// its standardisation over every keyframe of the database (their mean and
+// deviation), and its score adds weight x max(0, z - floor); a featureless
+// query is still ranked by it; features without a descriptor (from
+// elsewhere) leave it out; a descriptor of the wrong size is refused.
 TEST_F(QueryTest, TheWholeImageChannelScoresByItsRule) {
   QueryOptions options;
   options.whole_image_weight = 10.0;
+  options.whole_image_floor = 0.5;
   const QueryResult r = QueryDatabase(*db_, Features(42), options);
   ASSERT_FALSE(r.ranked.empty());
   const cv::Mat& q = Features(42).whole_image;
   ASSERT_EQ(q.cols, db_->whole_image_dims());
+  std::vector<double> all;
+  for (size_t i = 0; i < db_->size(); ++i)
+    all.push_back(WholeImageSimilarity(q.ptr<int8_t>(), db_->WholeImage(i), db_->whole_image_dims()));
+  double mean = 0, var = 0;
+  for (const double v : all) mean += v / all.size();
+  for (const double v : all) var += (v - mean) * (v - mean) / all.size();
+  ASSERT_GT(var, 0.0);
+  bool some_bonus = false;
   for (const RankedKeyframe& k : r.ranked) {
     ASSERT_TRUE(k.whole_image.has_value());
-    const double s = WholeImageSimilarity(q.ptr<int8_t>(), db_->WholeImage(k.keyframe_id - 1),
-                                          db_->whole_image_dims());
+    ASSERT_TRUE(k.whole_image_z.has_value());
+    const double s = all[static_cast<size_t>(k.keyframe_id - 1)];
     EXPECT_NEAR(*k.whole_image, s, 1e-5);
-    EXPECT_DOUBLE_EQ(k.score, k.num_inliers + 10.0 * std::max(0.0, *k.whole_image));
+    EXPECT_NEAR(*k.whole_image_z, (s - mean) / std::sqrt(var), 1e-4);
+    EXPECT_DOUBLE_EQ(k.score, k.num_inliers + 10.0 * std::max(0.0, *k.whole_image_z - 0.5));
+    some_bonus = some_bonus || *k.whole_image_z > 0.5;
   }
-  // Weight 0 (the default): no similarity is computed.
-  for (const RankedKeyframe& k : QueryDatabase(*db_, Features(42), QueryOptions()).ranked)
+  EXPECT_TRUE(some_bonus);  // the rule is exercised, not only its floor
+  // Weight 0 and no whole-image candidates: no similarity is computed.
+  QueryOptions off;
+  off.whole_image_weight = 0.0;
+  off.whole_image_candidates = 0;
+  for (const RankedKeyframe& k : QueryDatabase(*db_, Features(42), off).ranked) {
     EXPECT_FALSE(k.whole_image.has_value());
+    EXPECT_FALSE(k.whole_image_z.has_value());
+  }
   // No features at all, only the thumbnail: ranked by it.
   FeatureSet thumb = Features(42);
   thumb.keypoints.clear();
@@ -322,6 +341,7 @@ TEST_F(QueryTest, TheWholeImageChannelScoresByItsRule) {
   ASSERT_FALSE(by_thumb.ranked.empty());
   for (size_t i = 1; i < by_thumb.ranked.size(); ++i)
     EXPECT_GE(*by_thumb.ranked[i - 1].whole_image, *by_thumb.ranked[i].whole_image);
+  for (const RankedKeyframe& k : by_thumb.ranked) EXPECT_GT(*k.whole_image_z, 0.5);
   FeatureSet bare = Features(42);
   bare.whole_image = cv::Mat();
   for (const RankedKeyframe& k : QueryDatabase(*db_, bare, options).ranked)
@@ -418,7 +438,7 @@ TEST_F(QueryTest, MalformedFeaturesAreRejected) {
 
 // Real SURF features against an ORB database.
 TEST_F(QueryTest, SurfQueryAgainstOrbDatabaseThrows) {
-  ExtractorOptions surf;
+  ExtractorOptions surf = testing::ModelFreeExtractorOptions();
   surf.type = FeatureType::kSurf;
   surf.surf.max_features = 100;
   const FeatureSet features = FeatureExtractor::Create(surf)->Extract(cv::imread(RtabmapImage(42)));
@@ -522,6 +542,10 @@ TEST_F(QueryTest, ResultJsonRoundTripAndValidation) {
   EXPECT_EQ(back.matched, r.matched);
   EXPECT_EQ(back.num_examined, r.num_examined);
   EXPECT_EQ(back.times.total_ms, r.times.total_ms);
+  ASSERT_TRUE(r.ranked[0].whole_image_z.has_value());  // the default channel's
+  EXPECT_EQ(back.ranked[0].whole_image, r.ranked[0].whole_image);
+  EXPECT_EQ(back.ranked[0].whole_image_z, r.ranked[0].whole_image_z);
+  EXPECT_EQ(back.ranked, r.ranked);
   EXPECT_EQ(nlohmann::json(back), j);
 
   auto fails = [&](const std::function<void(nlohmann::json&)>& edit, const std::string& part) {
@@ -539,6 +563,10 @@ TEST_F(QueryTest, ResultJsonRoundTripAndValidation) {
                     "num_matches is not an integer"));
   EXPECT_TRUE(fails([](nlohmann::json& b) { b["ranked"][0]["num_inliers"] = 100000; },
                     "exceeds num_matches"));
+  EXPECT_TRUE(fails([](nlohmann::json& b) { b["ranked"][0]["whole_image"] = nullptr; },
+                    "whole_image_z is given without whole_image"));
+  EXPECT_TRUE(fails([](nlohmann::json& b) { b["ranked"][0]["whole_image_z"] = "high"; },
+                    "whole_image_z is not a number"));
   EXPECT_TRUE(fails(
       [](nlohmann::json& b) {
         b["ranked"][0]["pose"]["quaternion_xyzw"] = {0, 0, 0, 0};

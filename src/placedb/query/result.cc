@@ -14,7 +14,8 @@ bool RankedKeyframe::operator==(const RankedKeyframe& o) const {
                                     pose->rotation.coeffs() == o.pose->rotation.coeffs()));
   return keyframe_id == o.keyframe_id && score == o.score && num_matches == o.num_matches &&
          num_inliers == o.num_inliers && same_pose && timestamp == o.timestamp &&
-         source == o.source && stored_image == o.stored_image && whole_image == o.whole_image;
+         source == o.source && stored_image == o.stored_image && whole_image == o.whole_image &&
+         whole_image_z == o.whole_image_z;
 }
 
 bool SequenceEvidence::operator==(const SequenceEvidence& o) const {
@@ -85,6 +86,10 @@ RankedKeyframe RankedFromJson(const JsonReader& j) {
     if (w < -1.0 || w > 1.0) j.Fail("whole_image", "is not in [-1, 1]");
     r.whole_image = w;
   }
+  if (j.Has("whole_image_z") && !j.Member("whole_image_z").is_null()) {
+    if (!r.whole_image) j.Fail("whole_image_z", "is given without whole_image");
+    r.whole_image_z = j.Number("whole_image_z");
+  }
   return r;
 }
 
@@ -100,7 +105,9 @@ void to_json(nlohmann::json& j, const RankedKeyframe& r) {
        {"timestamp", r.timestamp},
        {"source", r.source},
        {"stored_image", r.stored_image},
-       {"whole_image", r.whole_image ? nlohmann::json(*r.whole_image) : nlohmann::json(nullptr)}};
+       {"whole_image", r.whole_image ? nlohmann::json(*r.whole_image) : nlohmann::json(nullptr)},
+       {"whole_image_z",
+        r.whole_image_z ? nlohmann::json(*r.whole_image_z) : nlohmann::json(nullptr)}};
 }
 
 void from_json(const nlohmann::json& j, RankedKeyframe& r) {

@@ -58,15 +58,26 @@ struct QueryOptions {
   QueryPrior prior;
   // The whole-image channel (databases that have it, queries from images):
   // a keyframe's score is its local-feature score (inliers, or matches when
-  // unverified) plus whole_image_weight x max(0, similarity), and the match
-  // stage keeps keyframes by matches plus the same bonus. Range [0, 10000].
-  // Default 0 (the channel does not score), chosen by the README's
-  // measurements on data/: on hand-held views of a loop it lowers recall.
-  double whole_image_weight = 0.0;
+  // unverified) plus whole_image_weight x max(0, z - whole_image_floor),
+  // where z is its whole-image similarity standardised over every keyframe
+  // of the database for this query (minus their mean, over their standard
+  // deviation; RankedKeyframe::whole_image_z); the match stage keeps
+  // keyframes by matches plus the same bonus. Standardised, the bonus means
+  // the same for every descriptor, camera and map size, and only a keyframe
+  // that stands out from the map gains: where local features hold they
+  // still decide. Range [0, 10000]. Default 10 (a keyframe 5 deviations
+  // above the map's mean counts as 20 inliers); 0: the channel does not
+  // score. Chosen on docs' "places that change" table.
+  double whole_image_weight = 10.0;
+  // The standardised similarity below which the channel adds nothing: what
+  // unrelated keyframes reach. Range [0, 100]. Default 3 (three standard
+  // deviations).
+  double whole_image_floor = 3.0;
   // Retrieval other than exhaustive also passes on the keyframes most
-  // similar by whole-image descriptor (searched exhaustively: it is tiny).
-  // Range [0, 1000]. Default 0: none.
-  int whole_image_candidates = 0;
+  // similar by whole-image descriptor (searched exhaustively: it is tiny),
+  // so that a place whose local features changed is still examined. Range
+  // [0, 1000]. Default 20; 0: none.
+  int whole_image_candidates = 20;
 
   // The options' names, defaults, ranges and help (util/option_table.h).
   static const OptionTable<QueryOptions>& Table();
@@ -90,9 +101,14 @@ struct RankedKeyframe {
   std::string source;        // the keyframe's source image
   std::string stored_image;  // its stored PNG (database dir joined), "" when none
   // The cosine similarity of the query's and the keyframe's whole-image
-  // descriptors (feature/whole_image.h), in [-1, 1], when both have one. The
-  // score then includes whole_image_weight x max(0, whole_image).
+  // descriptors (feature/whole_image.h), in [-1, 1], when both have one and
+  // the channel ran (whole_image_weight or whole_image_candidates above 0).
   std::optional<double> whole_image;
+  // The same standardised over the database's keyframes for this query
+  // (deviations above their mean; 0 when they do not vary), with
+  // whole_image. The score includes whole_image_weight x max(0,
+  // whole_image_z - whole_image_floor).
+  std::optional<double> whole_image_z;
 
   bool operator==(const RankedKeyframe& o) const;
 };

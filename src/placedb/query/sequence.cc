@@ -146,17 +146,20 @@ std::vector<double> StandardisedAlongMap(const std::vector<double>& values, int 
 namespace {
 
 // A frame's local evidence: its ranked keyframes' positions and scores, by
-// position, each once.
+// position, each once. `features_only`: the scores less their whole-image
+// bonus (inliers when verified, else matches), for a search that counts
+// the whole-image similarity itself.
 std::vector<std::pair<int32_t, double>> LocalEvidence(
     const QueryResult& frame, const std::unordered_map<int32_t, int32_t>& position,
-    double match_weight, size_t most) {
+    double match_weight, size_t most, bool features_only) {
   std::vector<std::pair<int32_t, double>> entries;
   for (const RankedKeyframe& r : frame.ranked) {
     if (entries.size() == most) break;
     const auto it = position.find(r.keyframe_id);
     if (it == position.end()) continue;
+    const double score = features_only ? (r.verified() ? r.num_inliers : r.num_matches) : r.score;
     entries.emplace_back(it->second,
-                         std::max(0.0, r.score) + match_weight * std::max(0, r.num_matches));
+                         std::max(0.0, score) + match_weight * std::max(0, r.num_matches));
   }
   std::sort(entries.begin(), entries.end());
   entries.erase(std::unique(entries.begin(), entries.end(),
@@ -169,7 +172,8 @@ std::vector<std::pair<int32_t, double>> LocalEvidence(
 
 QueryResult SequenceMatcher::Feed(QueryResult frame) {
   FrameEvidence evidence;
-  evidence.entries = LocalEvidence(frame, position_, options_.match_weight, kMaxEvidencePerFrame);
+  evidence.entries =
+      LocalEvidence(frame, position_, options_.match_weight, kMaxEvidencePerFrame, false);
   frames_.push_front(std::move(evidence));
   while (frames_.size() > static_cast<size_t>(options_.length)) frames_.pop_back();
   return Decide(std::move(frame));
@@ -183,7 +187,9 @@ QueryResult SequenceMatcher::Feed(QueryResult frame, const std::vector<float>& s
                           " keyframes, the sequence's table has ", n);
   }
   FrameEvidence evidence;
-  evidence.entries = LocalEvidence(frame, position_, options_.match_weight, kMaxEvidencePerFrame);
+  // The frame's whole-image bonus is counted below, over the whole map.
+  evidence.entries =
+      LocalEvidence(frame, position_, options_.match_weight, kMaxEvidencePerFrame, true);
   // The similarities by position, standardised over the map (or over a
   // window of keyframes around each), NaN left out (0 evidence).
   std::vector<double> value(n, std::numeric_limits<double>::quiet_NaN());

@@ -54,8 +54,11 @@
 namespace placedb {
 
 struct SequenceOptions {
-  // Frames of evidence, the newest included. Range [1, 100]. Default 10.
-  int length = 10;
+  // Frames of evidence, the newest included. Range [1, 100]. Default 15:
+  // the longest that keeps the loop's sequence recall in the docs' "hard
+  // places" table (a longer path gains under change on a steady route and
+  // loses where the camera turns; docs' "places that change").
+  int length = 15;
   // A path's score is its best mean evidence over its newest m frames, m
   // from min_length to the frames held: a path the camera joined a few
   // frames ago (coming back to a mapped stretch) is not diluted by the
@@ -81,10 +84,10 @@ struct SequenceOptions {
   // map's keyframes for that frame (minus their mean, over their standard
   // deviation), so that every keyframe has evidence in every frame, as in
   // SeqSLAM's difference matrix; 0: each frame's ranked keyframes alone.
-  // Range [0, 1000]. Default 0 (10 with a HOG channel: a keyframe 3 standard
-  // deviations above the map counts as 30 inliers; README "Places that
-  // change" has what it gives).
-  double whole_image_weight = 0.0;
+  // Range [0, 1000]. Default 10 (a keyframe 3 standard deviations above the
+  // map counts as 30 inliers; docs' "places that change" table has what it
+  // gives).
+  double whole_image_weight = 10.0;
   // Over the whole map: the standardisation is over the `contrast_window`
   // keyframes on each side of a keyframe (SeqSLAM's local contrast
   // enhancement) instead of the whole map when above 0. Range [0, 100000].
@@ -95,7 +98,7 @@ struct SequenceOptions {
   // the last Reset), so that a keyframe like every frame (a hub: snow, a
   // tunnel, a bland wall) gains nothing from it. A camera that stands still
   // for about this many frames sees its own keyframe's evidence fade the
-  // same way. 0: off. Range [0, 100000]. Default 50 (five default lengths).
+  // same way. 0: off. Range [0, 100000]. Default 50 (over three default lengths).
   int hub_frames = 50;
 
   static const OptionTable<SequenceOptions>& Table();

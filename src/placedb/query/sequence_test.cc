@@ -70,7 +70,7 @@ TEST(SequenceMatcherTest, AConsistentPathBeatsStrongerScatteredAnswers) {
   }
   EXPECT_EQ(frame_right, 0);
   EXPECT_GE(sequence_right, 28);
-  EXPECT_EQ(matcher.frames_held(), 10u);
+  EXPECT_EQ(matcher.frames_held(), static_cast<size_t>(SequenceOptions().length));
 }
 
 TEST(SequenceMatcherTest, FindsTheEndAFrameDidNotRankAndKeepsTheListLength) {
@@ -312,6 +312,7 @@ TEST(SequenceMatcherTest, OverTheWholeMapEveryPathIsScoredCausally) {
   for (const auto& [window, hub] : {std::pair{0, 0}, {25, 0}, {0, 50}, {25, 7}}) {
     SequenceOptions o;
     o.whole_image_weight = 10.0;
+    o.match_weight = 0.0;  // the brute force counts the scores alone
     o.contrast_window = window;
     o.hub_frames = hub;
     SequenceMatcher matcher(table, o);
@@ -322,6 +323,7 @@ TEST(SequenceMatcherTest, OverTheWholeMapEveryPathIsScoredCausally) {
         RankedKeyframe k;
         k.keyframe_id = id;
         k.score = score;
+        k.num_matches = static_cast<int>(score);  // unverified: the score is the matches
         frame.ranked.push_back(k);
       }
       const QueryResult r = matcher.Feed(frame, frames[t].similarity);
@@ -335,7 +337,7 @@ TEST(SequenceMatcherTest, OverTheWholeMapEveryPathIsScoredCausally) {
         right += r.ranked.front().keyframe_id == 100 + static_cast<int>(t);
       }
     }
-    EXPECT_EQ(matcher.frames_held(), 10u);
+    EXPECT_EQ(matcher.frames_held(), static_cast<size_t>(SequenceOptions().length));
     EXPECT_GE(right, 33) << "window " << window << ", hub " << hub;  // of 35
   }
   SequenceOptions o;
@@ -347,9 +349,11 @@ TEST(SequenceMatcherTest, OverTheWholeMapEveryPathIsScoredCausally) {
   for (int t = 0; t < 4; ++t) r = matcher.Feed(QueryResult(), std::vector<float>(300, 0.5f));
   EXPECT_EQ(r.sequence->score, 0.0);
   EXPECT_FALSE(r.matched);
-  // Weight 0 (the default), or no similarities: each frame's ranked list
-  // alone, as Feed(frame).
-  SequenceMatcher local(table, SequenceOptions()), plain(table, SequenceOptions());
+  // Weight 0, or no similarities: each frame's ranked list alone, as
+  // Feed(frame).
+  SequenceOptions off;
+  off.whole_image_weight = 0.0;
+  SequenceMatcher local(table, off), plain(table, off);
   for (size_t t = 0; t < 12; ++t) {
     QueryResult frame;
     RankedKeyframe k;

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <limits>
 
 namespace placedb {
 namespace {
@@ -18,6 +19,9 @@ placedb_msgs::RankedKeyframe RankedToMessage(const RankedKeyframe& k) {
   m.score = k.score;
   m.num_matches = k.num_matches;
   m.num_inliers = k.num_inliers;
+  const double absent = std::numeric_limits<double>::quiet_NaN();
+  m.whole_image = k.whole_image.value_or(absent);
+  m.whole_image_z = k.whole_image_z.value_or(absent);
   return m;
 }
 
@@ -92,6 +96,12 @@ placedb_msgs::Features FeaturesToMessage(const FeatureSet& f, uint64_t frame_seq
     const auto* data = f.descriptors.ptr<uint8_t>();
     m.descriptors.assign(data, data + f.descriptors.total() * f.descriptors.elemSize());
   }
+  if (!f.whole_image.empty()) {
+    if (f.whole_image.type() != CV_8SC1 || f.whole_image.rows != 1 || !f.whole_image.isContinuous())
+      throw InvalidArgument("the whole-image row must be one contiguous 1 x N int8 row");
+    const auto* w = f.whole_image.ptr<int8_t>();
+    m.whole_image.assign(w, w + f.whole_image.cols);
+  }
   return m;
 }
 
@@ -138,6 +148,13 @@ FeatureSet FeaturesFromMessage(const placedb_msgs::Features& m) {
         Bad("descriptors", "a value is not finite");
     }
   }
+  // Its size against the database's and its values are the query's checks
+  // (ValidateQueryFeatures); here only what a matrix can hold.
+  if (m.whole_image.size() > 65536) Bad("whole image", "more than 65536 values");
+  if (!m.whole_image.empty()) {
+    f.whole_image = cv::Mat(1, static_cast<int>(m.whole_image.size()), CV_8SC1);
+    std::memcpy(f.whole_image.data, m.whole_image.data(), m.whole_image.size());
+  }
   return f;
 }
 
@@ -168,13 +185,25 @@ QueryResult PartialFromMessage(const placedb_msgs::PartialResult& m) {
     if (!std::isfinite(k.score) || k.num_matches < 0 || k.num_inliers < -1 ||
         k.num_inliers > k.num_matches)
       Bad("ranked keyframe", "impossible counts for keyframe " + std::to_string(k.keyframe_id));
-    const double expected = k.num_inliers >= 0 ? k.num_inliers : k.num_matches;
-    if (k.score != expected) Bad("ranked keyframe", "score disagrees with the counts");
+    const bool whole = !std::isnan(k.whole_image);
+    if (whole != !std::isnan(k.whole_image_z) || (whole && (k.whole_image < -1.0 ||
+                                                            k.whole_image > 1.0 ||
+                                                            !std::isfinite(k.whole_image_z))))
+      Bad("ranked keyframe", "bad whole-image values for keyframe " + std::to_string(k.keyframe_id));
+    // The counts, plus the whole-image bonus (which the voter checks against
+    // its options: VoteCollector::OnPartial).
+    const double counted = k.num_inliers >= 0 ? k.num_inliers : k.num_matches;
+    if (whole ? !(k.score >= counted) : k.score != counted)
+      Bad("ranked keyframe", "score disagrees with the counts");
     RankedKeyframe out;
     out.keyframe_id = k.keyframe_id;
     out.score = k.score;
     out.num_matches = k.num_matches;
     out.num_inliers = k.num_inliers;
+    if (whole) {
+      out.whole_image = k.whole_image;
+      out.whole_image_z = k.whole_image_z;
+    }
     r.ranked.push_back(out);
   }
   for (const double t : {m.extract_ms, m.retrieve_ms, m.match_ms, m.verify_ms, m.total_ms}) {

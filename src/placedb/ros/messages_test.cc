@@ -5,10 +5,12 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <opencv2/imgcodecs.hpp>
 
 #include "placedb/dataset/bag/image_message.h"
 #include "placedb/feature/extractor.h"
+#include "placedb/feature/testing.h"
 #include "placedb/ros/node_common.h"
 #include "placedb/util/testing.h"
 
@@ -18,10 +20,10 @@ using testing_util::ThrowsWith;
 
 TEST(RosMessagesTest, FeaturesRoundTrip) {
   const cv::Mat image = cv::imread(testing_util::RtabmapImage(42));
-  ExtractorOptions surf;
+  ExtractorOptions surf = testing::ModelFreeExtractorOptions();
   surf.type = FeatureType::kSurf;
   surf.surf.max_features = 100;
-  for (const ExtractorOptions& options : {ExtractorOptions(), surf}) {
+  for (const ExtractorOptions& options : {testing::ModelFreeExtractorOptions(), surf}) {
     const FeatureSet f = FeatureExtractor::Create(options)->Extract(image);
     ASSERT_FALSE(f.empty());
     std_msgs::Header h;
@@ -32,6 +34,11 @@ TEST(RosMessagesTest, FeaturesRoundTrip) {
     EXPECT_EQ(back.type, f.type);
     testing_util::ExpectSameKeypoints(back.keypoints, f.keypoints);
     EXPECT_EQ(cv::norm(back.descriptors, f.descriptors, cv::NORM_INF), 0.0);
+    // The whole-image row travels too (the workers score the channel).
+    ASSERT_FALSE(f.whole_image.empty());
+    ASSERT_EQ(back.whole_image.type(), CV_8SC1);
+    ASSERT_EQ(back.whole_image.cols, f.whole_image.cols);
+    EXPECT_EQ(std::memcmp(back.whole_image.data, f.whole_image.data, f.whole_image.cols), 0);
   }
   // No features at all is fine.
   FeatureSet empty;
@@ -40,7 +47,7 @@ TEST(RosMessagesTest, FeaturesRoundTrip) {
 }
 
 TEST(RosMessagesTest, MalformedFeaturesAreRefused) {
-  const FeatureSet f = FeatureExtractor::Create(ExtractorOptions())
+  const FeatureSet f = FeatureExtractor::Create(testing::ModelFreeExtractorOptions())
                            ->Extract(cv::imread(testing_util::RtabmapImage(42)));
   const placedb_msgs::Features good = FeaturesToMessage(f, 1, std_msgs::Header());
   auto fails = [&](const std::function<void(placedb_msgs::Features&)>& edit,
@@ -96,6 +103,26 @@ TEST(RosMessagesTest, PartialResultsRoundTripAndAreChecked) {
   EXPECT_TRUE(fails([](auto& b) { b.ranked[0].score = std::nan(""); }, "ranked keyframe"));
   EXPECT_TRUE(fails([](auto& b) { b.ranked[0].score = 99; }, "ranked keyframe"));
   EXPECT_TRUE(fails([](auto& b) { b.match_ms = -1; }, "times"));
+  // With the whole-image channel: its values travel, the score may exceed
+  // the counts by the bonus (the voter checks the bonus), and bad values are
+  // refused.
+  EXPECT_TRUE(std::isnan(m.ranked[0].whole_image));
+  QueryResult whole = r;
+  whole.ranked[0].whole_image = 0.75;
+  whole.ranked[0].whole_image_z = 4.5;
+  whole.ranked[0].score = 25 + 15;
+  const placedb_msgs::PartialResult w = PartialToMessage(
+      whole, 9, std_msgs::Header(), KeyframeSubset::Partition(1, 3), "keyframes.x.bin");
+  EXPECT_EQ(PartialFromMessage(w).ranked, whole.ranked);
+  auto whole_fails = [&](const std::function<void(placedb_msgs::PartialResult&)>& edit) {
+    placedb_msgs::PartialResult bad = w;
+    edit(bad);
+    return ThrowsWith<InvalidArgument>([&] { PartialFromMessage(bad); }, "ranked keyframe");
+  };
+  EXPECT_TRUE(whole_fails([](auto& b) { b.ranked[0].whole_image_z = std::nan(""); }));
+  EXPECT_TRUE(whole_fails([](auto& b) { b.ranked[0].whole_image = 1.5; }));
+  EXPECT_TRUE(whole_fails([](auto& b) { b.ranked[0].whole_image_z = INFINITY; }));
+  EXPECT_TRUE(whole_fails([](auto& b) { b.ranked[0].score = 20; }));
 }
 
 // The two rounds of bag-of-words search: a worker's shortlist and the

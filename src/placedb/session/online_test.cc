@@ -126,22 +126,22 @@ TEST_P(OnlineTest, WholeImageRowsFollowAddRemoveSave) {
   const auto rows_match = [](const PlaceDatabase& session, size_t expected) {
     const StorageView view(session);
     const Database& d = view.database();
-    ASSERT_EQ(d.whole_image_dims(), 768);
+    ASSERT_EQ(d.whole_image_dims(), 512);  // the default HOG channel
     ASSERT_EQ(d.size(), expected);
     for (size_t i = 0; i < d.size(); ++i) {
-      const cv::Mat row =
-          ComputeWholeImageDescriptor(cv::imread(d.keyframe(i).source), WholeImageOptions());
-      EXPECT_EQ(std::memcmp(d.WholeImage(i), row.data, 768), 0) << "keyframe " << d.keyframe(i).id;
+      const cv::Mat row = session.Extract(cv::imread(d.keyframe(i).source)).whole_image;
+      ASSERT_EQ(row.cols, 512);
+      EXPECT_EQ(std::memcmp(d.WholeImage(i), row.data, 512), 0) << "keyframe " << d.keyframe(i).id;
     }
   };
   PlaceDatabase db = PlaceDatabase::Open(Dir());
-  EXPECT_EQ(db.whole_image_dims(), 768);
+  EXPECT_EQ(db.whole_image_dims(), 512);
   for (int id = 31; id <= 34; ++id) db.Add(FrameOf(id), cv::imread(RtabmapImage(id)));
   rows_match(db, 34);
   // From features: without a row (or with one of another size) refused.
   const cv::Mat image = cv::imread(RtabmapImage(35));
   FeatureSet features = db.Extract(image);
-  ASSERT_EQ(features.whole_image.cols, 768);
+  ASSERT_EQ(features.whole_image.cols, 512);
   Keyframe k;
   k.id = 35;
   k.source = RtabmapImage(35);
@@ -150,7 +150,7 @@ TEST_P(OnlineTest, WholeImageRowsFollowAddRemoveSave) {
   FeatureSet without = features;
   without.whole_image.release();
   EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.Add(k, without); }, "whole-image"));
-  without.whole_image = features.whole_image.colRange(0, 700).clone();
+  without.whole_image = features.whole_image.colRange(0, 400).clone();
   EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.Add(k, without); }, "whole-image"));
   db.Add(k, features);
   EXPECT_EQ(cv::norm(db.KeyframeFeatures(35).whole_image, features.whole_image, cv::NORM_L1), 0.0);
@@ -541,6 +541,8 @@ TEST_P(OnlineTest, NoDebrisSurvivesTheNextOpenAfterKills) {
       named.insert(manifest["index"]["vocabulary"].get<std::string>());
       named.insert(manifest["index"]["bow"].get<std::string>());
     }
+    if (manifest.contains("whole_image_model"))
+      named.insert(manifest["whole_image_model"].get<std::string>());
     std::set<std::string> top, pngs, expected_pngs;
     for (const auto& e : fs::directory_iterator(dir)) top.insert(e.path().filename().string());
     EXPECT_EQ(top, named);

@@ -105,8 +105,10 @@ struct OpenOptions {
   // measures it), at the cost of one read per examined keyframe (about
   // 5 us here; exhaustive search reads every keyframe). Answers are the
   // same, and every byte is still checked before it is used (the bytes read
-  // are checked when the keyframe's first use is a read). Only for a
-  // version 3 database opened with its features. Default false.
+  // are checked when the keyframe's first use is a read). The whole-image
+  // rows stay mapped (every query with the channel scans them: 512 bytes a
+  // keyframe with the HOG channel). Only for a version 3 database opened
+  // with its features. Default false.
   bool read_features = false;
   // The same, decided by the map's size: queries read the features when the
   // database's keyframe file is larger than this many MiB, so that a map

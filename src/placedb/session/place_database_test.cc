@@ -110,7 +110,8 @@ TEST_F(PlaceDatabaseTest, ThreadsDoNotChangeTheAnswer) {
 }
 
 // Partitions opened from disk (as N worker processes would), each queried
-// with ForPartition options, merge into the whole database's answer.
+// with ForPartition options, merge into the whole database's answer, with
+// the whole-image channel scoring (each standardises over the file's rows).
 TEST_F(PlaceDatabaseTest, PartitionsOpenedFromDiskMergeIntoTheWholeAnswer) {
   const PlaceDatabase whole = PlaceDatabase::Open(Dir());
   for (const PartitionScheme scheme :
@@ -136,7 +137,7 @@ TEST_F(PlaceDatabaseTest, PartitionsOpenedFromDiskMergeIntoTheWholeAnswer) {
 }
 
 // QueryAmong restricts a query to given keyframe indices; an id subset opens
-// just those keyframes.
+// just those keyframes and answers alike.
 TEST_F(PlaceDatabaseTest, RestrictionsAndIdSubsets) {
   const PlaceDatabase db = PlaceDatabase::Open(Dir());
   const cv::Mat image = cv::imread(RtabmapImage(60));  // true matches 18..22
@@ -204,25 +205,25 @@ TEST_F(PlaceDatabaseTest, ManifestSettingsMustAgreeWithTheKeyframes) {
                                           "settings.resize is not a whole number"));
   // The whole-image channel: settings that say none (or another size) with
   // a file that holds it are a corrupt database, and the reverse.
-  EXPECT_EQ(original["whole_image_dims"], 768);
+  EXPECT_EQ(original["whole_image_dims"], 512);  // the default HOG channel
   m = original;
   m["settings"]["features"]["whole_image"]["enabled"] = false;
   WriteFileAtomic(manifest_path, m.dump());
   EXPECT_TRUE(ThrowsWith<CorruptDatabase>(
       [&] { PlaceDatabase::Open(copy.string()); },
-      "settings have no whole-image channel but the keyframes hold rows of 768 values"));
+      "settings have no whole-image channel but the keyframes hold rows of 512 values"));
   m = original;
-  m["settings"]["features"]["whole_image"]["width"] = 16;
+  m["settings"]["features"]["whole_image"]["kind"] = "thumbnail";  // 32 x 24
   WriteFileAtomic(manifest_path, m.dump());
   EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { PlaceDatabase::Open(copy.string()); },
-                                          "give whole-image rows of 384 values"));
+                                          "give whole-image rows of 768 values"));
   m = original;
   m.erase("whole_image_dims");
   WriteFileAtomic(manifest_path, m.dump());
   EXPECT_TRUE(ThrowsWith<CorruptDatabase>([&] { PlaceDatabase::Open(copy.string()); },
                                           "disagree on the whole-image channel"));
   WriteFileAtomic(manifest_path, original.dump());
-  EXPECT_EQ(PlaceDatabase::Open(copy.string()).whole_image_dims(), 768);
+  EXPECT_EQ(PlaceDatabase::Open(copy.string()).whole_image_dims(), 512);
   EXPECT_NO_THROW(PlaceDatabase::Open(copy.string()));
 }
 

@@ -88,6 +88,7 @@ TEST_F(SearchTest, BowFindsWhatExhaustiveSearchFinds) {
   QueryOptions exhaustive, bow;
   bow.retrieval.method = RetrievalMethod::kBow;
   bow.retrieval.bow_candidates = 10;
+  bow.whole_image_candidates = 0;  // bag-of-words' candidates alone
   const double r_exhaustive = RecallAt1(db, exhaustive, false);
   const double r_bow = RecallAt1(db, bow, false);
   EXPECT_GE(r_exhaustive, 0.95);
@@ -111,9 +112,10 @@ TEST_F(SearchTest, BowFindsWhatExhaustiveSearchFinds) {
 // restriction (a partition) excludes them; exhaustive search is unchanged.
 TEST_F(SearchTest, WholeImageCandidatesJoinBagOfWords) {
   const PlaceDatabase db = PlaceDatabase::Open(Dir());
-  ASSERT_EQ(db.whole_image_dims(), 768);
+  ASSERT_EQ(db.whole_image_dims(), 512);  // the default HOG channel
   QueryOptions bow;
   bow.retrieval.method = RetrievalMethod::kBow;
+  bow.whole_image_candidates = 0;
   bow.retrieval.bow_candidates = 3;
   bow.retrieval.guided_candidates = 0;  // every candidate matched in full
   bow.min_matches = 1;
@@ -146,16 +148,17 @@ TEST_F(SearchTest, WholeImageCandidatesJoinBagOfWords) {
   for (size_t i = 0; i < 4; ++i) EXPECT_EQ(ranked.count(all[i].second), 1u) << all[i].second;
   // Exhaustive search is the same with or without candidates.
   QueryOptions exhaustive, exhaustive_with;
+  exhaustive.whole_image_candidates = 0;
   exhaustive_with.whole_image_candidates = 4;
   EXPECT_EQ(db.Query(Features(id), exhaustive).ranked,
             db.Query(Features(id), exhaustive_with).ranked);
 }
 
-// Whole-image scoring without whole-image candidates computes the
-// similarity of the examined keyframes alone (no scan of every thumbnail):
-// each ranked keyframe's is the brute-force one and its score follows the
-// rule (PartitionedBowIsExactInTwoRounds: the answers equal the merged
-// partitions', whose parts compute them the same way).
+// Whole-image scoring without whole-image candidates examines bow's
+// candidates alone; each ranked keyframe's similarity and its
+// standardisation over every keyframe are the brute-force ones, and its
+// score follows the rule (PartitionedBowIsExactInTwoRounds: the answers
+// equal the merged partitions', whose parts compute them the same way).
 TEST_F(SearchTest, WholeImageScoringAloneScoresTheExamined) {
   const PlaceDatabase db = PlaceDatabase::Open(Dir());
   QueryOptions bow;
@@ -163,25 +166,35 @@ TEST_F(SearchTest, WholeImageScoringAloneScoresTheExamined) {
   bow.retrieval.bow_candidates = 8;
   bow.retrieval.guided_candidates = 0;
   bow.whole_image_weight = 5.0;
+  bow.whole_image_floor = 1.0;
+  bow.whole_image_candidates = 0;
   bow.top_k = 40;
   bow.verify.num_candidates = 40;
   const StorageView view(db);
   const Database& d = view.database();
-  int compared = 0;
+  int compared = 0, with_bonus = 0;
   for (int id = 41; id <= 84; id += 3) {
     const cv::Mat& q = Features(id).whole_image;
+    std::vector<double> all;
+    for (size_t i = 0; i < d.size(); ++i)
+      all.push_back(WholeImageSimilarity(q.ptr<int8_t>(), d.WholeImage(i), d.whole_image_dims()));
+    double mean = 0, var = 0;
+    for (const double v : all) mean += v / all.size();
+    for (const double v : all) var += (v - mean) * (v - mean) / all.size();
     const QueryResult r = db.Query(Features(id), bow);
     EXPECT_EQ(r.num_examined, 8);
     for (const RankedKeyframe& k : r.ranked) {
       ASSERT_TRUE(k.whole_image.has_value()) << "query " << id;
-      const double s = WholeImageSimilarity(q.ptr<int8_t>(), d.WholeImage(k.keyframe_id - 1),
-                                            d.whole_image_dims());
+      const double s = all[static_cast<size_t>(k.keyframe_id - 1)];
       EXPECT_NEAR(*k.whole_image, s, 1e-5);
-      EXPECT_DOUBLE_EQ(k.score, k.num_inliers + 5.0 * std::max(0.0, *k.whole_image));
+      EXPECT_NEAR(*k.whole_image_z, (s - mean) / std::sqrt(var), 1e-4);
+      EXPECT_DOUBLE_EQ(k.score, k.num_inliers + 5.0 * std::max(0.0, *k.whole_image_z - 1.0));
+      with_bonus += *k.whole_image_z > 1.0;
       ++compared;
     }
   }
   EXPECT_GT(compared, 15);
+  EXPECT_GT(with_bonus, 3);
 }
 
 // Scoring a few keyframes one by one gives the inverted file's scores.
@@ -267,13 +280,18 @@ TEST_F(SearchTest, ResidentLimitLetsGoOfTheKeyframeFile) {
 // read_features: queries read the features of the keyframes they examine
 // from the file instead of mapping them, so the keyframe file's pages never
 // count in the process's resident memory; the answers are the same, with
-// and without verification, and so is a keyframe's match detail.
+// and without verification, and so is a keyframe's match detail. (The
+// whole-image channel, off here, scans the rows it keeps mapped.)
 TEST_F(SearchTest, ReadFeaturesAnswerTheSameWithoutMappingTheKeyframes) {
   QueryOptions bow;
   bow.retrieval.method = RetrievalMethod::kBow;
+  bow.whole_image_weight = 0.0;
+  bow.whole_image_candidates = 0;
   QueryOptions unverified = bow;
   unverified.verify.enabled = false;
-  const QueryOptions exhaustive;
+  QueryOptions exhaustive;
+  exhaustive.whole_image_weight = 0.0;
+  exhaustive.whole_image_candidates = 0;
   const std::vector<const QueryOptions*> searches = {&bow, &unverified, &exhaustive};
   OpenOptions plain;
   plain.prefetch = false;  // only queries map pages
@@ -396,6 +414,7 @@ TEST_F(SearchTest, SubsetsGetTheirOwnIndex) {
   QueryOptions bow;
   bow.retrieval.method = RetrievalMethod::kBow;
   bow.retrieval.bow_candidates = 3;
+  bow.whole_image_candidates = 0;
   const QueryResult r = part.Query(Features(79), bow);
   EXPECT_EQ(r.num_examined, 3u);
   for (const RankedKeyframe& k : r.ranked) EXPECT_GT(k.keyframe_id, 20);
@@ -627,7 +646,9 @@ TEST(FormatVersionTest, ReadsAFormatVersion2DatabaseAndAnswersTheSame) {
   // counts, and the largest difference of an inlier count, over them.
   int same_order = 0, largest_inlier_change = 0;
   auto run = [&](const PlaceDatabase& db, const std::string& search, int* same_lists) {
-    QueryOptions options;
+    QueryOptions options;  // as the answers were recorded: local features alone
+    options.whole_image_weight = 0.0;
+    options.whole_image_candidates = 0;
     options.retrieval.method =
         search == "bow" ? RetrievalMethod::kBow : RetrievalMethod::kExhaustive;
     const nlohmann::json& recorded = expected["searches"][search]["queries"];

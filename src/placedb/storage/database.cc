@@ -383,6 +383,15 @@ const int8_t* Database::WholeImageData() const {
   return mapped_whole_image_ != nullptr ? mapped_whole_image_ : whole_image_.data();
 }
 
+const int8_t* Database::StandardisingRows(size_t* count) const {
+  if (file_whole_image_ != nullptr) {
+    *count = file_whole_image_rows_;
+    return file_whole_image_;
+  }
+  *count = whole_image_dims_ > 0 ? keyframes_.size() : 0;
+  return WholeImageData();
+}
+
 void Database::CopyOnWrite() {
   if (mapped_whole_image_ != nullptr) {
     EnsureWholeImageChecked();
@@ -1175,6 +1184,8 @@ void Database::DecodeKeyframeFile(std::shared_ptr<const MappedFile> file, const 
       mapped_whole_image_ = reinterpret_cast<const int8_t*>(whole_image_rows);
     } else {
       if (compact) verify_whole_image();  // copied now, so checked now
+      file_whole_image_ = reinterpret_cast<const int8_t*>(whole_image_rows);
+      file_whole_image_rows_ = num_keyframes;
       whole_image_.reserve(keep.size() * whole_image_dims);
       for (const size_t i : keep) {
         const auto* row = reinterpret_cast<const int8_t*>(whole_image_rows) + i * whole_image_dims;

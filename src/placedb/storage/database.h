@@ -197,6 +197,11 @@ class Database {
   const int8_t* WholeImage(size_t index) const {
     return WholeImageData() + index * static_cast<size_t>(whole_image_dims_);
   }
+  // The rows the whole-image channel standardises a query's similarities
+  // over, `*count` of them: for a subset loaded from a file, every row of
+  // the file (so that every subset of one file, and the whole, standardise
+  // alike and their answers merge exactly); else WholeImageData()'s size().
+  const int8_t* StandardisingRows(size_t* count) const;
 
   // Appends a keyframe with its features. InvalidArgument when the
   // keyframe is impossible (CheckKeyframe), its id is taken, or the features'
@@ -331,6 +336,10 @@ class Database {
   bool read_features_ = false;  // LoadOptions::read_features
   // The whole file's rows in place (a subset's are copied into whole_image_).
   const int8_t* mapped_whole_image_ = nullptr;
+  // A subset's: every row of the file it was loaded from (checked at the
+  // load), and their number.
+  const int8_t* file_whole_image_ = nullptr;
+  size_t file_whole_image_rows_ = 0;
   bool has_features_ = true;
   nlohmann::json info_ = nlohmann::json::object();
   KeyframeSubset subset_;

@@ -21,6 +21,7 @@
 #include <thread>
 
 #include "placedb/feature/extractor.h"
+#include "placedb/feature/testing.h"
 #include "placedb/feature/whole_image.h"
 #include "placedb/match/ratio_matcher.h"
 #include "placedb/query/query.h"
@@ -218,14 +219,14 @@ void RoundTrip(const ExtractorOptions& options, bool with_poses) {
   EXPECT_EQ(loaded2.info(), loaded.info());
 }
 
-TEST(DatabaseTest, RoundTripOrbWithPoses) { RoundTrip(ExtractorOptions(), /*with_poses=*/true); }
+TEST(DatabaseTest, RoundTripOrbWithPoses) { RoundTrip(testing::ModelFreeExtractorOptions(), /*with_poses=*/true); }
 
 TEST(DatabaseTest, RoundTripOrbWithoutPoses) {
-  RoundTrip(ExtractorOptions(), /*with_poses=*/false);
+  RoundTrip(testing::ModelFreeExtractorOptions(), /*with_poses=*/false);
 }
 
 TEST(DatabaseTest, RoundTripSurf) {
-  ExtractorOptions options;
+  ExtractorOptions options = testing::ModelFreeExtractorOptions();
   options.type = FeatureType::kSurf;
   options.surf.max_features = 200;
   RoundTrip(options, /*with_poses=*/true);
@@ -249,13 +250,13 @@ TEST(DatabaseTest, LoadedDatabaseGrowsAndOutlivesItsFiles) {
   // first added keyframe copies them, and a rebuild replacing the files on
   // disk does not disturb a database already open.
   TempDir tmp;
-  const Database three = MakeDatabase(ExtractorOptions(), 3, true);
+  const Database three = MakeDatabase(testing::ModelFreeExtractorOptions(), 3, true);
   three.Save(tmp.Path());
   Database loaded = LoadVerified(tmp.Path());
-  MakeDatabase(ExtractorOptions(), 1, false).Save(tmp.Path());  // files replaced
+  MakeDatabase(testing::ModelFreeExtractorOptions(), 1, false).Save(tmp.Path());  // files replaced
   ExpectDatabasesEqual(three, loaded);
 
-  const Database four = MakeDatabase(ExtractorOptions(), 4, true);
+  const Database four = MakeDatabase(testing::ModelFreeExtractorOptions(), 4, true);
   FeatureSet extra;
   extra.type = FeatureType::kOrb;
   extra.keypoints = four.Keypoints(3);
@@ -333,10 +334,10 @@ void ExpectSubsetOf(const Database& whole, const Database& part) {
 }
 
 TEST(DatabaseTest, SubsetsOpenOnlyTheirKeyframes) {
-  ExtractorOptions surf;
+  ExtractorOptions surf = testing::ModelFreeExtractorOptions();
   surf.type = FeatureType::kSurf;
   surf.surf.max_features = 60;
-  for (const ExtractorOptions& options : {ExtractorOptions(), surf}) {
+  for (const ExtractorOptions& options : {testing::ModelFreeExtractorOptions(), surf}) {
     TempDir tmp;
     MakeDatabase(options, 7, true).Save(tmp.Path());
     const Database whole = LoadVerified(tmp.Path());
@@ -424,7 +425,7 @@ uint64_t SectionOffsetIn(const std::string& bytes, uint32_t kind) {
 
 class DatabaseFileTest : public ::testing::Test {
  protected:
-  static void SetUpTestSuite() { db_ = new Database(MakeDatabase(ExtractorOptions(), 3, true)); }
+  static void SetUpTestSuite() { db_ = new Database(MakeDatabase(testing::ModelFreeExtractorOptions(), 3, true)); }
   static void TearDownTestSuite() {
     delete db_;
     db_ = nullptr;
@@ -605,7 +606,7 @@ TEST_F(DatabaseFileTest, WholeImageSectionIsOptionalAndChecked) {
 // values; one without the channel ignores rows. Compacted and a grown copy
 // keep every row with its keyframe.
 TEST(DatabaseRowsTest, WholeImageRowsAreCheckedAndFollowTheirKeyframes) {
-  const Database built = MakeDatabase(ExtractorOptions(), 4, false);
+  const Database built = MakeDatabase(testing::ModelFreeExtractorOptions(), 4, false);
   ASSERT_EQ(built.whole_image_dims(), 768);
   Database db(FeatureType::kOrb, 32, 768);
   EXPECT_THROW(Database(FeatureType::kOrb, 32, 8), InvalidArgument);
@@ -1033,7 +1034,7 @@ TEST_F(DatabaseFileTest, ImpossibleValuesWithValidChecksums) {
 TEST_F(DatabaseFileTest, MutatedFilesNeverCrash) {
   std::mt19937_64 rng(20261201);
   const FeatureSet query =
-      FeatureExtractor::Create(ExtractorOptions())->Extract(cv::imread(RtabmapImage(42)));
+      FeatureExtractor::Create(testing::ModelFreeExtractorOptions())->Extract(cv::imread(RtabmapImage(42)));
   int loaded = 0, rejected = 0;
   auto attempt = [&] {
     try {
@@ -1175,8 +1176,8 @@ TEST_F(DatabaseFileTest, MutatedFilesNeverCrash) {
 TEST(DatabaseSaveTest, KilledInPlaceSaveLeavesALoadableDatabase) {
   if (testing_util::kThreadSanitizer) GTEST_SKIP() << "forks: not under ThreadSanitizer";
   TempDir tmp;
-  const Database small = MakeDatabase(ExtractorOptions(), 2, false);
-  const Database large = MakeDatabase(ExtractorOptions(), 6, true);
+  const Database small = MakeDatabase(testing::ModelFreeExtractorOptions(), 2, false);
+  const Database large = MakeDatabase(testing::ModelFreeExtractorOptions(), 6, true);
   small.Save(tmp.Path());
   std::mt19937 rng(7);
   int survived = 0;
@@ -1214,8 +1215,8 @@ TEST(DatabaseSaveTest, KilledInPlaceSaveLeavesALoadableDatabase) {
 // while the others overlap the saves, however slow the machine.
 TEST(DatabaseSaveTest, ReadersSeeOneGenerationWhileAWriterSaves) {
   TempDir tmp;
-  Database a = MakeDatabase(ExtractorOptions(), 3, false);
-  Database b = MakeDatabase(ExtractorOptions(), 3, true);  // same counts, other content
+  Database a = MakeDatabase(testing::ModelFreeExtractorOptions(), 3, false);
+  Database b = MakeDatabase(testing::ModelFreeExtractorOptions(), 3, true);  // same counts, other content
   a.info()["generation"] = "a";
   b.info()["generation"] = "b";
   a.Save(tmp.Path());
@@ -1262,9 +1263,9 @@ TEST(DatabaseSaveTest, ReadersSeeOneGenerationWhileAWriterSaves) {
 }
 
 TEST(DatabaseTest, AddingSurfFeaturesToOrbDatabaseThrows) {
-  Database db = MakeDatabase(ExtractorOptions(), 1, false);
+  Database db = MakeDatabase(testing::ModelFreeExtractorOptions(), 1, false);
   ASSERT_EQ(db.size(), 1u);
-  ExtractorOptions surf;
+  ExtractorOptions surf = testing::ModelFreeExtractorOptions();
   surf.type = FeatureType::kSurf;
   surf.surf.max_features = 50;
   const FeatureSet features = FeatureExtractor::Create(surf)->Extract(cv::imread(RtabmapImage(5)));
@@ -1277,17 +1278,17 @@ TEST(DatabaseTest, AddingSurfFeaturesToOrbDatabaseThrows) {
   // A SURF database refuses ORB features the same way.
   Database surf_db(FeatureType::kSurf, 256);
   const FeatureSet orb =
-      FeatureExtractor::Create(ExtractorOptions())->Extract(cv::imread(RtabmapImage(5)));
+      FeatureExtractor::Create(testing::ModelFreeExtractorOptions())->Extract(cv::imread(RtabmapImage(5)));
   EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { surf_db.AddKeyframe(k, orb); },
                                           "cannot add orb features to a database of surf"));
   EXPECT_TRUE(surf_db.empty());
 }
 
 TEST(DatabaseTest, DuplicateKeyframeIdThrows) {
-  Database db = MakeDatabase(ExtractorOptions(), 2, false);  // ids 10, 20
+  Database db = MakeDatabase(testing::ModelFreeExtractorOptions(), 2, false);  // ids 10, 20
   const size_t features = db.num_features();
   const FeatureSet set =
-      FeatureExtractor::Create(ExtractorOptions())->Extract(cv::imread(RtabmapImage(7)));
+      FeatureExtractor::Create(testing::ModelFreeExtractorOptions())->Extract(cv::imread(RtabmapImage(7)));
   Keyframe k;
   k.id = 20;
   EXPECT_TRUE(ThrowsWith<InvalidArgument>([&] { db.AddKeyframe(k, set); },
@@ -1533,7 +1534,7 @@ TEST(CompactKeypointTest, KeepsWhatTheStagesUse) {
   EXPECT_FALSE(ckp::Decode(record, 3, &out));
   // A database keeps added keypoints quantized (a 160 x 120 stored image:
   // 1/256 px), and refuses those it cannot keep.
-  Database db = MakeDatabase(ExtractorOptions(), 1, false);
+  Database db = MakeDatabase(testing::ModelFreeExtractorOptions(), 1, false);
   FeatureSet f = db.Features(0);
   Keyframe k = db.keyframe(0);
   ASSERT_EQ(k.stored_size, cv::Size(160, 120));
@@ -1553,7 +1554,7 @@ TEST(CompactKeypointTest, KeepsWhatTheStagesUse) {
 }
 
 ExtractorOptions SmallSurf() {
-  ExtractorOptions options;
+  ExtractorOptions options = testing::ModelFreeExtractorOptions();
   options.type = FeatureType::kSurf;
   options.surf.max_features = 60;
   return options;
