@@ -100,9 +100,7 @@ VoteStatus VoteCollector::OnPartial(uint64_t frame_seq, int partition, const Que
   for (const RankedKeyframe& r : partial.ranked) {
     if (r.verified() != options_.query.verify.enabled || !ids.insert(r.keyframe_id).second)
       return VoteStatus::kInconsistent;
-    const double counted = r.verified() ? r.num_inliers : r.num_matches;
-    if (r.score != counted + query_order::WholeImageBonus(r.whole_image_z, options_.query))
-      return VoteStatus::kInconsistent;
+    if (r.score != query_order::FusedScore(r, options_.query)) return VoteStatus::kInconsistent;
   }
   for (const auto& [other, result] : p.partials) {
     for (const RankedKeyframe& r : result.ranked) {

@@ -30,6 +30,16 @@ inline double MatchKey(const RankedKeyframe& r, const QueryOptions& options) {
   return r.num_matches + WholeImageBonus(r.whole_image_z, options);
 }
 
+// A keyframe's local-feature evidence: inliers when verified, else matches.
+inline double FeatureScore(const RankedKeyframe& r) {
+  return r.verified() ? r.num_inliers : r.num_matches;
+}
+
+// A keyframe's whole score: its feature score plus the whole-image bonus.
+inline double FusedScore(const RankedKeyframe& r, const QueryOptions& options) {
+  return FeatureScore(r) + WholeImageBonus(r.whole_image_z, options);
+}
+
 // A verified keyframe's score: its inliers plus the whole-image bonus.
 inline double VerifiedScore(const RankedKeyframe& r, const QueryOptions& options) {
   return r.num_inliers + WholeImageBonus(r.whole_image_z, options);

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 
+#include "placedb/query/order.h"
 #include "placedb/util/check.h"
 
 namespace placedb {
@@ -157,7 +158,7 @@ std::vector<std::pair<int32_t, double>> LocalEvidence(
     if (entries.size() == most) break;
     const auto it = position.find(r.keyframe_id);
     if (it == position.end()) continue;
-    const double score = features_only ? (r.verified() ? r.num_inliers : r.num_matches) : r.score;
+    const double score = features_only ? query_order::FeatureScore(r) : r.score;
     entries.emplace_back(it->second,
                          std::max(0.0, score) + match_weight * std::max(0, r.num_matches));
   }
